@@ -1,0 +1,25 @@
+#pragma once
+// Frame files: one OpenEXR file per frame holding every sample's features, the per-pixel
+// motion / validity / reference and the metadata. The channel naming scheme is documented in
+// docs/FRAME_FILES.md. Writes are atomic; reads reject anything incomplete with an
+// affinity::Error naming the file and the problem.
+#include <string>
+#include <vector>
+
+#include "affinity/frame.h"
+
+namespace affinity {
+
+enum class ExrCompression { None, Zip, Piz };
+
+// Writes to a temporary file beside `path`, then renames it over `path`.
+void writeFrame(const std::string& path, const SampleFrame& frame,
+                ExrCompression compression = ExrCompression::Piz);
+SampleFrame readFrame(const std::string& path);
+
+// "frame_0007.exr" for index 7: the name every sequence folder uses.
+std::string frameFileName(int frameIndex);
+// The frame files of a sequence folder in frame order (throws if the folder does not exist).
+std::vector<std::string> listFrameFiles(const std::string& directory);
+
+}  // namespace affinity

@@ -1,0 +1,39 @@
+#include "affinity/frame.h"
+
+#include "affinity/error.h"
+
+namespace affinity {
+
+SampleFrame::SampleFrame(int width, int height, int spp, bool withReference)
+    : width_(width), height_(height), spp_(spp) {
+    if (width < 1 || height < 1) {
+        throw Error("frame size " + std::to_string(width) + "x" + std::to_string(height) +
+                    " is invalid: both sides must be at least 1");
+    }
+    if (spp < 1 || spp > kMaxSpp) {
+        throw Error("samples per pixel " + std::to_string(spp) + " is outside 1.." +
+                    std::to_string(kMaxSpp));
+    }
+    samples_.assign(pixelCount() * spp * kFeatureCount, 0.0f);
+    motion_.assign(pixelCount() * 2, 0.0f);
+    valid_.assign(pixelCount(), 0.0f);
+    if (withReference) reference_.assign(pixelCount() * 3, 0.0f);
+}
+
+std::vector<float> SampleFrame::meanRadiance() const {
+    std::vector<float> mean(pixelCount() * 3, 0.0f);
+    const float scale = 1.0f / float(spp_);
+    for (int y = 0; y < height_; ++y) {
+        for (int x = 0; x < width_; ++x) {
+            float* out = mean.data() + 3 * pixelIndex(x, y);
+            for (int s = 0; s < spp_; ++s) {
+                const float* f = sample(x, y, s);
+                for (int c = 0; c < 3; ++c) out[c] += f[channel::kDiffuse + c] + f[channel::kSpecular + c];
+            }
+            for (int c = 0; c < 3; ++c) out[c] *= scale;
+        }
+    }
+    return mean;
+}
+
+}  // namespace affinity
