@@ -1,0 +1,34 @@
+#!/usr/bin/env bash
+# Sets up everything the project needs on a fresh Debian 12 machine, then builds it.
+# Idempotent: packages already present are not reinstalled, an existing build is reused.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+cd "$root"
+
+debian_packages=(
+  build-essential cmake ninja-build pkg-config
+  libembree-dev libtbb-dev libopenexr-dev nlohmann-json3-dev libglm-dev libstb-dev
+  libgtest-dev libgmock-dev libbenchmark-dev
+  python3 python3-dev python3-venv
+)
+missing=()
+for p in "${debian_packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "setup: installing ${missing[*]}" >&2
+  sudo_cmd=""; [ "$(id -u)" -ne 0 ] && sudo_cmd="sudo"
+  $sudo_cmd apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_cmd apt-get install -y -qq "${missing[@]}" >/dev/null
+fi
+
+python=${PYTHON:-python3}
+if [ ! -x .venv/bin/python ]; then
+  "$python" -m venv .venv
+fi
+.venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.txt
+
+build_dir=${AFFINITY_BUILD_DIR:-build}
+cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release \
+  -DPython_EXECUTABLE="$root/.venv/bin/python" ${AFFINITY_CMAKE_ARGS:-} >/dev/null
+cmake --build "$build_dir" -j "${AFFINITY_JOBS:-2}"
