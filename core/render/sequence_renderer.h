@@ -1,0 +1,49 @@
+#pragma once
+// Renders an animation frame by frame into SampleFrames: S separate samples per pixel, a
+// converged reference, and motion vectors with a validity mask from the primary hits.
+#include <cstdint>
+#include <functional>
+#include <memory>
+
+#include "affinity/frame.h"
+#include "render/embree_scene.h"
+#include "render/scene.h"
+
+namespace affinity::render {
+
+struct RenderSettings {
+    int width = 256;
+    int height = 256;
+    int spp = 4;
+    int referenceSpp = 1024;  // 0: no reference
+    std::uint64_t seed = 0;
+    int maxBounces = 16;
+};
+
+// Called with the fraction of the frame done, from one thread at a time.
+using ProgressCallback = std::function<void(double)>;
+
+class SequenceRenderer {
+public:
+    // Throws affinity::Error for invalid settings or an invalid scene.
+    SequenceRenderer(const Scene& scene, const RenderSettings& settings);
+    ~SequenceRenderer();
+
+    // Frames must be rendered in increasing order; frame t has valid history only when frame
+    // t - 1 was the previous frame rendered by this renderer.
+    SampleFrame render(int frameIndex, const ProgressCallback& progress = {});
+
+private:
+    void computeMotion(int frameIndex, const EmbreeScene& current, SampleFrame& frame) const;
+
+    const Scene& scene_;
+    RenderSettings settings_;
+    std::unique_ptr<EmbreeScene> previous_;
+    int previousIndex_ = -1;
+};
+
+// Deterministic random stream of sample `sampleIndex` of a pixel: independent of threads.
+// Reference samples use indices from kReferenceStream on, so they never repeat a noisy sample.
+inline constexpr std::uint64_t kReferenceStream = 1ull << 32;
+
+}  // namespace affinity::render
