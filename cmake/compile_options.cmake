@@ -2,6 +2,8 @@
 add_library(affinity_options INTERFACE)
 target_compile_options(affinity_options INTERFACE
   -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wno-sign-conversion
+  # GCC 12 reports false -Wrestrict positives inside std::string concatenation at -O3.
+  -Wno-restrict
   -march=${AFFINITY_ARCH}
   # Without these the float loops do not vectorise (FACTS.md); we never rely on errno or traps.
   -fno-math-errno -fno-trapping-math)

@@ -54,7 +54,7 @@ struct RadianceSplit {
 
 }  // namespace
 
-void PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDirection, Pcg32& rng,
+int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDirection, Pcg32& rng,
                        float* features) const {
     std::fill(features, features + kFeatureCount, 0.0f);
     const Scene& scene = scene_.scene();
@@ -66,9 +66,11 @@ void PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDir
     float pathLength = 0.0f;
     bool transmittedBeforeV = false;
 
+    int rays = 0;
     glm::vec3 origin = cameraOrigin, direction = cameraDirection;
     for (int bounce = 0; bounce <= maxBounces_; ++bounce) {
         std::optional<SurfaceHit> hit = scene_.intersect(origin, direction);
+        ++rays;
         if (!hit) {
             float weight = previousWasDelta ? 1.0f : powerHeuristic(previousBsdfPdf, lights_.pdfEnvironment());
             radiance.add(scene.environment.radiance(direction) * weight);
@@ -129,9 +131,13 @@ void PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDir
                 glm::vec3 wiLocal = frame.toLocal(light.direction);
                 BsdfValue f = bsdf.evaluate(woLocal, wiLocal);
                 glm::vec3 fTotal = f.diffuse + f.specular;
-                if (fTotal != glm::vec3(0.0f) &&
-                    !scene_.occluded(offsetOrigin(surface, light.direction), light.direction,
-                                     light.distance * (1.0f - 1e-3f))) {
+                bool reachesLight = false;
+                if (fTotal != glm::vec3(0.0f)) {
+                    ++rays;
+                    reachesLight = !scene_.occluded(offsetOrigin(surface, light.direction), light.direction,
+                                                    light.distance * (1.0f - 1e-3f));
+                }
+                if (reachesLight) {
                     float weight = powerHeuristic(light.pdf, f.pdf);
                     glm::vec3 scale = light.radiance * (std::abs(wiLocal.z) * weight / light.pdf);
                     if (isV) {
@@ -186,6 +192,7 @@ void PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDir
         features[channel::kDiffuse + c] = radiance.diffuse[c];
         features[channel::kSpecular + c] = radiance.specular[c];
     }
+    return rays;
 }
 
 }  // namespace affinity::render

@@ -22,8 +22,9 @@ public:
     PathTracer(const EmbreeScene& scene, const LightSampler& lights, int maxBounces)
         : scene_(scene), lights_(lights), maxBounces_(maxBounces) {}
 
-    // Traces one camera path and writes its kFeatureCount features to `features`.
-    void trace(const glm::vec3& origin, const glm::vec3& direction, Pcg32& rng, float* features) const;
+    // Traces one camera path, writes its kFeatureCount features to `features`, and returns
+    // the number of rays it cast (for throughput figures).
+    int trace(const glm::vec3& origin, const glm::vec3& direction, Pcg32& rng, float* features) const;
 
 private:
     const EmbreeScene& scene_;

@@ -56,7 +56,8 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
     computeMotion(frameIndex, *current, frame);
 
     std::atomic<int> rowsDone{0};
-#pragma omp parallel
+    std::uint64_t rays = 0;
+#pragma omp parallel reduction(+ : rays)
     {
         enableFastFloatMode();
         float scratch[kFeatureCount];
@@ -67,16 +68,18 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
                 for (int s = 0; s < settings_.spp; ++s) {
                     Pcg32 rng = sampleRng(settings_.seed, frameIndex, pixel, std::uint64_t(s));
                     glm::vec2 jitter(rng.next(), rng.next());
-                    tracer.trace(camera.position(), camera.direction(float(x) + jitter.x, float(y) + jitter.y),
-                                 rng, frame.sample(x, y, s));
+                    rays += std::uint64_t(tracer.trace(
+                        camera.position(), camera.direction(float(x) + jitter.x, float(y) + jitter.y), rng,
+                        frame.sample(x, y, s)));
                 }
                 if (frame.hasReference()) {
                     glm::dvec3 sum(0.0);
                     for (int s = 0; s < settings_.referenceSpp; ++s) {
                         Pcg32 rng = sampleRng(settings_.seed, frameIndex, pixel, kReferenceStream + std::uint64_t(s));
                         glm::vec2 jitter(rng.next(), rng.next());
-                        tracer.trace(camera.position(), camera.direction(float(x) + jitter.x, float(y) + jitter.y),
-                                     rng, scratch);
+                        rays += std::uint64_t(tracer.trace(
+                            camera.position(), camera.direction(float(x) + jitter.x, float(y) + jitter.y), rng,
+                            scratch));
                         for (int c = 0; c < 3; ++c) sum[c] += double(scratch[channel::kDiffuse + c] + scratch[channel::kSpecular + c]);
                     }
                     float* ref = frame.reference(x, y);
@@ -88,6 +91,7 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
         }
     }
     if (progress) progress(1.0);
+    raysCast_ += rays;
 
     previous_ = std::move(current);
     previousIndex_ = frameIndex;

@@ -33,6 +33,9 @@ public:
     // t - 1 was the previous frame rendered by this renderer.
     SampleFrame render(int frameIndex, const ProgressCallback& progress = {});
 
+    // Rays cast so far (camera, bounce and shadow rays), for throughput figures.
+    std::uint64_t raysCast() const { return raysCast_; }
+
 private:
     void computeMotion(int frameIndex, const EmbreeScene& current, SampleFrame& frame) const;
 
@@ -40,6 +43,7 @@ private:
     RenderSettings settings_;
     std::unique_ptr<EmbreeScene> previous_;
     int previousIndex_ = -1;
+    std::uint64_t raysCast_ = 0;
 };
 
 // Deterministic random stream of sample `sampleIndex` of a pixel: independent of threads.
