@@ -34,13 +34,17 @@ SampleFrame renderOne(const Scene& scene, int size, int spp, std::uint64_t seed 
 
 }  // namespace
 
-// Inside a closed sphere whose wall has albedo a and emits E, every point sees L = E / (1 - a).
+// Inside a closed box whose walls have albedo a and emit E, every point sees L = E / (1 - a).
 TEST(Integrator, ClosedFurnaceGivesEmissionOverOneMinusAlbedo) {
     for (float albedo : {0.3f, 0.7f}) {
         Scene scene = test::emptyScene("furnace");
         int wall = test::addMaterial(scene, MaterialType::Emitter, glm::vec3(albedo), 0.5f, 1.5f, glm::vec3(1.0f));
-        // Negative scale turns the sphere inside out, so its emitting side faces the camera.
-        test::addObject(scene, ShapeType::Sphere, wall, {glm::vec3(0.0f), glm::vec3(0.0f), glm::vec3(-20.0f)});
+        // Six quads facing inwards (a quad faces +Y before rotation).
+        const std::pair<glm::vec3, glm::vec3> faces[] = {
+            {{0, -10, 0}, {0, 0, 0}},  {{0, 10, 0}, {180, 0, 0}}, {{0, 0, -10}, {90, 0, 0}},
+            {{0, 0, 10}, {-90, 0, 0}}, {{-10, 0, 0}, {0, 0, -90}}, {{10, 0, 0}, {0, 0, 90}}};
+        for (const auto& [position, rotation] : faces)
+            test::addObject(scene, ShapeType::Quad, wall, {position, rotation, glm::vec3(10.0f)});
         glm::dvec3 mean = meanRadiance(renderOne(scene, 16, 64));
         const double expected = 1.0 / (1.0 - albedo);
         for (int c = 0; c < 3; ++c) EXPECT_NEAR(mean[c], expected, 0.01 * expected) << "albedo " << albedo;
