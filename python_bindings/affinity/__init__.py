@@ -1,0 +1,90 @@
+"""affinity: frame files of per-sample render features, as numpy arrays.
+
+A frame is a dict::
+
+    {
+        "samples":   float32 (H, W, S, 18)  every sample's features, channel order FEATURE_NAMES
+        "motion":    float32 (H, W, 2)      pixels into the previous frame, x right, y down
+        "valid":     float32 (H, W)         1 where the previous frame saw the same surface
+        "reference": float32 (H, W, 3) or None   converged linear RGB radiance
+        "info": {
+            "scene_name": str,
+            "frame_index": int,
+            "reference_spp": int,            0 without a reference
+            "seed": int,                     unsigned 64-bit
+            "world_to_camera": float32 (4, 4),
+            "camera_to_clip": float32 (4, 4),
+        },
+    }
+
+Matrices are row-major and act on column vectors (``p_camera = world_to_camera @ p_world``).
+The file format and every convention are described in docs/FRAME_FILES.md.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+from . import _core
+
+__all__ = [
+    "Error",
+    "FEATURE_COUNT",
+    "FEATURE_NAMES",
+    "MAX_SPP",
+    "frame_file_name",
+    "list_frame_files",
+    "read_frame",
+    "write_frame",
+]
+
+Error = _core.Error
+Error.__module__ = __name__
+Error.__doc__ = (
+    "Raised for every failure inside the affinity library: unreadable, corrupt or incomplete "
+    "files, failed writes. The message names the file and the problem. A subclass of "
+    "RuntimeError."
+)
+
+#: The 18 per-sample feature channel names in channel order, e.g. "diffuse.R", "normal.X".
+FEATURE_NAMES: list[str] = list(_core.FEATURE_NAMES)
+#: Number of features per sample (the last axis of "samples").
+FEATURE_COUNT: int = _core.FEATURE_COUNT
+#: Largest number of samples per pixel a frame may hold.
+MAX_SPP: int = _core.MAX_SPP
+
+
+def read_frame(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Reads a frame file into a frame dict (see the module docstring).
+
+    The arrays are freshly allocated and writable. Raises ``affinity.Error`` naming the file for
+    a missing, incomplete, corrupt or non-conforming file.
+    """
+    return _core.read_frame(os.fspath(path))
+
+
+def write_frame(
+    path: str | os.PathLike[str], frame: dict[str, Any], compression: str = "piz"
+) -> None:
+    """Writes a frame dict (see the module docstring) to ``path`` atomically.
+
+    Every key except "reference" is required, "reference" may be None or absent; every array
+    must be float32 with the documented shape (any memory layout). ``compression`` is "none",
+    "zip" or "piz" (all lossless). Raises ``ValueError``/``TypeError``/``KeyError`` naming the
+    offending key for malformed input, ``affinity.Error`` when writing fails.
+    """
+    _core.write_frame(os.fspath(path), frame, compression)
+
+
+def frame_file_name(frame_index: int) -> str:
+    """The file name of a frame in a sequence folder: ``frame_0007.exr`` for index 7."""
+    return _core.frame_file_name(frame_index)
+
+
+def list_frame_files(directory: str | os.PathLike[str]) -> list[str]:
+    """Paths of the frame files in a sequence folder, in frame order.
+
+    Raises ``affinity.Error`` if the folder does not exist.
+    """
+    return _core.list_frame_files(os.fspath(directory))
