@@ -1,0 +1,31 @@
+#pragma once
+// The dilated affinity kernels and the temporal affinity kernel of docs/MODEL.md sections
+// 6-7, and bilinear warping by motion vectors (section 3).
+#include "feature_map.h"
+
+namespace affinity {
+
+// Per-pixel parameters of one kernel: features f (F channels), bandwidth a, centre weight c
+// (already through its sigmoid). a and c are single-channel maps.
+struct KernelParams {
+    const FeatureMap* features;
+    const FeatureMap* bandwidth;
+    const FeatureMap* centre;
+};
+
+// One dilated spatial pass: output = normalised affinity-weighted sum of `radiance` (3
+// channels) over the tapSize x tapSize grid with the given dilation.
+void affinityFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                    FeatureMap& output);
+
+// The last pass: the spatial taps as above plus 3x3 temporal taps on the warped previous
+// output, weighted by exp(-b^2 ||f(p) - warpedFeatures(q)||^2) * warpedValid(q).
+void affinityFilterTemporal(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                            const FeatureMap& temporalBandwidth, const FeatureMap& warpedOutput,
+                            const FeatureMap& warpedFeatures, const FeatureMap& warpedValid, FeatureMap& output);
+
+// output(p) = bilinear lookup of `previous` at (x + motion.x, y + motion.y), border-clamped.
+// motion: height x width x 2 floats (frame layout).
+void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& output);
+
+}  // namespace affinity

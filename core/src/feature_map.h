@@ -1,0 +1,40 @@
+#pragma once
+// An image of C float channels per pixel, stored NHWC (channels of a pixel contiguous, rows
+// top to bottom) in 64-byte aligned memory: the buffer type of every denoiser stage.
+#include <cstddef>
+#include <memory>
+#include <new>
+
+namespace affinity {
+
+class FeatureMap {
+public:
+    FeatureMap() = default;
+    FeatureMap(int height, int width, int channels) { resize(height, width, channels); }
+
+    // Reallocates only when the new size needs more memory than held; contents undefined.
+    void resize(int height, int width, int channels);
+    void fill(float value);
+
+    int height() const { return height_; }
+    int width() const { return width_; }
+    int channels() const { return channels_; }
+    std::size_t pixelCount() const { return std::size_t(height_) * std::size_t(width_); }
+    std::size_t size() const { return pixelCount() * std::size_t(channels_); }
+    bool empty() const { return size() == 0; }
+
+    float* data() { return data_.get(); }
+    const float* data() const { return data_.get(); }
+    float* pixel(int y, int x) { return data_.get() + (std::size_t(y) * width_ + x) * channels_; }
+    const float* pixel(int y, int x) const { return data_.get() + (std::size_t(y) * width_ + x) * channels_; }
+
+private:
+    struct AlignedDelete {
+        void operator()(float* p) const { ::operator delete[](p, std::align_val_t(64)); }
+    };
+    std::unique_ptr<float[], AlignedDelete> data_;
+    std::size_t capacity_ = 0;
+    int height_ = 0, width_ = 0, channels_ = 0;
+};
+
+}  // namespace affinity
