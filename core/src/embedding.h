@@ -17,6 +17,7 @@ class Embedding {
 public:
     explicit Embedding(std::vector<DenseLayer> layers);  // validates chained sizes
     int outChannels() const;
+    const std::vector<DenseLayer>& layers() const { return layers_; }
 
     // samples: [pixels][spp][kFeatureCount] raw features (frame layout); depthScale from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).

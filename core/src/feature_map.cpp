@@ -14,6 +14,14 @@ void FeatureMap::resize(int height, int width, int channels) {
     }
 }
 
+FeatureMap& FeatureMap::operator=(const FeatureMap& other) {
+    if (this != &other) {
+        resize(other.height_, other.width_, other.channels_);
+        std::copy(other.data(), other.data() + other.size(), data());
+    }
+    return *this;
+}
+
 void FeatureMap::fill(float value) { std::fill(data_.get(), data_.get() + size(), value); }
 
 }  // namespace affinity

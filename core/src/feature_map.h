@@ -11,6 +11,10 @@ class FeatureMap {
 public:
     FeatureMap() = default;
     FeatureMap(int height, int width, int channels) { resize(height, width, channels); }
+    FeatureMap(const FeatureMap& other) { *this = other; }
+    FeatureMap& operator=(const FeatureMap& other);  // deep copy
+    FeatureMap(FeatureMap&&) noexcept = default;
+    FeatureMap& operator=(FeatureMap&&) noexcept = default;
 
     // Reallocates only when the new size needs more memory than held; contents undefined.
     void resize(int height, int width, int channels);

@@ -1,0 +1,40 @@
+#pragma once
+// The stateful sequence denoiser: feed a sequence's frames in order, get denoised linear RGB
+// back. It keeps the temporal state (accumulated embeddings and radiance, previous output
+// and affinity features) between calls; reset() forgets it, as at a camera cut. Single-frame
+// use is the same call on a fresh (or reset) denoiser.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "affinity/frame.h"
+#include "affinity/model.h"
+
+namespace affinity {
+
+struct DenoiseReport {
+    long long invalidRadiance = 0;  // NaN, Inf or negative radiance values treated as 0
+    bool usedHistory = false;       // a previous frame contributed
+    std::string resetReason;        // why history was dropped before this frame, if it was
+};
+
+class Denoiser {
+public:
+    explicit Denoiser(Model model = Model::builtIn());
+    ~Denoiser();
+    Denoiser(Denoiser&&) noexcept;
+    Denoiser& operator=(Denoiser&&) noexcept;
+
+    // Denoises the next frame of the sequence. Returns height x width x 3 linear radiance.
+    // History is dropped automatically when the frame size changes or the camera jumps.
+    std::vector<float> denoise(const SampleFrame& frame, DenoiseReport* report = nullptr);
+    void reset();
+
+    const Model& model() const;
+
+private:
+    struct State;
+    std::unique_ptr<State> state_;
+};
+
+}  // namespace affinity

@@ -1,0 +1,284 @@
+// The per-frame pipeline of docs/MODEL.md: embedding -> warp and accumulate -> U-Net ->
+// per-pixel kernel parameters -> dilated affinity kernels -> temporal kernel.
+#include "affinity/denoiser.h"
+
+#include <algorithm>
+#include <cmath>
+
+#include "affinity/error.h"
+#include "affinity_filter.h"
+#include "network.h"
+
+namespace affinity {
+namespace {
+
+float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
+
+// 1 / mean depth of the samples that hit something (docs/MODEL.md section 1).
+float depthScale(const SampleFrame& frame) {
+    double sum = 0.0;
+    long long count = 0;
+    const std::vector<float>& samples = frame.samples();
+    for (std::size_t i = channel::kDepth; i < samples.size(); i += kFeatureCount) {
+        float depth = samples[i];
+        if (std::isfinite(depth) && depth > 0.0f) {
+            sum += depth;
+            ++count;
+        }
+    }
+    return count > 0 ? float(double(count) / sum) : 0.0f;
+}
+
+// Per-pixel mean radiance with non-finite and negative values read as 0.
+void noisyRadiance(const SampleFrame& frame, FeatureMap& out) {
+    out.resize(frame.height(), frame.width(), 3);
+    const int spp = frame.spp();
+    const float scale = 1.0f / float(spp);
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < frame.height(); ++y) {
+        for (int x = 0; x < frame.width(); ++x) {
+            float* o = out.pixel(y, x);
+            o[0] = o[1] = o[2] = 0.0f;
+            for (int s = 0; s < spp; ++s) {
+                const float* f = frame.sample(x, y, s);
+                for (int c = 0; c < 3; ++c) {
+                    float d = f[channel::kDiffuse + c], sp = f[channel::kSpecular + c];
+                    o[c] += (std::isfinite(d) && d > 0.0f ? d : 0.0f) + (std::isfinite(sp) && sp > 0.0f ? sp : 0.0f);
+                }
+            }
+            for (int c = 0; c < 3; ++c) o[c] *= scale;
+        }
+    }
+}
+
+// out = valid ? warped : current, per pixel.
+void selectHistory(const FeatureMap& warped, const FeatureMap& current, const std::vector<float>& valid,
+                   FeatureMap& out) {
+    out.resize(current.height(), current.width(), current.channels());
+    const int channels = current.channels();
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < current.height(); ++y)
+        for (int x = 0; x < current.width(); ++x) {
+            const float* from = valid[std::size_t(y) * current.width() + x] > 0.5f ? warped.pixel(y, x) : current.pixel(y, x);
+            std::copy(from, from + channels, out.pixel(y, x));
+        }
+}
+
+// state = (1 - lambda) current + lambda history.
+void blend(const FeatureMap& current, const FeatureMap& history, const FeatureMap& lambda, FeatureMap& out) {
+    out.resize(current.height(), current.width(), current.channels());
+    const int channels = current.channels();
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < current.height(); ++y)
+        for (int x = 0; x < current.width(); ++x) {
+            const float l = lambda.pixel(y, x)[0];
+            const float* c = current.pixel(y, x);
+            const float* h = history.pixel(y, x);
+            float* o = out.pixel(y, x);
+            for (int k = 0; k < channels; ++k) o[k] = (1.0f - l) * c[k] + l * h[k];
+        }
+}
+
+// Angle in degrees between two cameras' viewing directions, and the distance between them.
+void cameraChange(const Matrix4& a, const Matrix4& b, double& degrees, double& distance) {
+    // Row 2 of world-to-camera is the camera's +Z axis in world space; the position is
+    // -R^T t.
+    double dot = 0.0;
+    for (int i = 0; i < 3; ++i) dot += double(a[8 + i]) * b[8 + i];
+    degrees = std::acos(std::clamp(dot, -1.0, 1.0)) * 180.0 / 3.14159265358979;
+    distance = 0.0;
+    for (int i = 0; i < 3; ++i) {
+        double pa = 0.0, pb = 0.0;
+        for (int r = 0; r < 3; ++r) {
+            pa -= double(a[r * 4 + i]) * a[r * 4 + 3];
+            pb -= double(b[r * 4 + i]) * b[r * 4 + 3];
+        }
+        distance += (pa - pb) * (pa - pb);
+    }
+    distance = std::sqrt(distance);
+}
+
+}  // namespace
+
+struct Denoiser::State {
+    Model model;
+    bool hasHistory = false;
+    int width = 0, height = 0;
+    Matrix4 worldToCamera{};
+    float meanDepth = 0.0f;
+    // Temporal state (docs/MODEL.md sections 3 and 7).
+    FeatureMap embeddingHistory, radianceHistory, output, lastFeatures;
+    // Scratch buffers, kept to avoid reallocating every frame.
+    FeatureMap embedding, radiance, warped, historyEmbedding, historyRadiance, head;
+    std::vector<FeatureMap> encoderOut, scratch;
+    std::vector<FeatureMap> kernelFeatures, kernelBandwidth, kernelCentre;
+    FeatureMap temporalBandwidth, lambda, filterA, filterB, warpedOutput, warpedFeatures, validMap;
+
+    explicit State(Model m) : model(std::move(m)) {}
+    void runUnet(const Network& net);
+};
+
+Denoiser::Denoiser(Model model) : state_(std::make_unique<State>(std::move(model))) {}
+Denoiser::~Denoiser() = default;
+Denoiser::Denoiser(Denoiser&&) noexcept = default;
+Denoiser& Denoiser::operator=(Denoiser&&) noexcept = default;
+
+const Model& Denoiser::model() const { return state_->model; }
+
+void Denoiser::reset() { state_->hasHistory = false; }
+
+// head = U-Net(concat(embedding, historyEmbedding)).
+void Denoiser::State::runUnet(const Network& net) {
+    const std::size_t levels = net.encoder.size();
+    encoderOut.resize(levels);
+    scratch.resize(2);
+    FeatureMap pooled;
+    for (std::size_t level = 0; level < levels; ++level) {
+        const std::vector<Conv2d>& block = net.encoder[level];
+        FeatureMap* in = nullptr;
+        if (level == 0) {
+            block[0].apply(embedding, historyEmbedding, Activation::LeakyRelu, scratch[0]);
+        } else {
+            maxPool2x2(encoderOut[level - 1], pooled);
+            block[0].apply(pooled, Activation::LeakyRelu, scratch[0]);
+        }
+        in = &scratch[0];
+        for (std::size_t j = 1; j < block.size(); ++j) {
+            block[j].apply(*in, Activation::LeakyRelu, scratch[j % 2]);
+            in = &scratch[j % 2];
+        }
+        std::swap(encoderOut[level], *in);
+    }
+    maxPool2x2(encoderOut[levels - 1], pooled);
+    FeatureMap* current = &pooled;
+    for (std::size_t j = 0; j < net.bottleneck.size(); ++j) {
+        net.bottleneck[j].apply(*current, Activation::LeakyRelu, scratch[j % 2]);
+        current = &scratch[j % 2];
+    }
+    FeatureMap upsampled, low;
+    std::swap(low, *current);
+    for (std::size_t l = levels; l-- > 0;) {
+        const FeatureMap& skip = encoderOut[l];
+        upsampleNearest(low, skip.height(), skip.width(), upsampled);
+        const std::vector<Conv2d>& block = net.decoder[l];
+        block[0].apply(upsampled, skip, Activation::LeakyRelu, scratch[0]);
+        current = &scratch[0];
+        for (std::size_t j = 1; j < block.size(); ++j) {
+            block[j].apply(*current, Activation::LeakyRelu, scratch[j % 2]);
+            current = &scratch[j % 2];
+        }
+        std::swap(low, *current);
+    }
+    net.head->apply(low, Activation::None, head);
+}
+
+std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* report) {
+    State& s = *state_;
+    const Network& net = s.model.network();
+    DenoiseReport local;
+    const int width = frame.width(), height = frame.height();
+    if (width < 1 || height < 1 || frame.spp() < 1) throw Error("denoise: the frame is empty");
+    if (frame.samples().size() != frame.pixelCount() * std::size_t(frame.spp()) * kFeatureCount ||
+        frame.motion().size() != frame.pixelCount() * 2 || frame.valid().size() != frame.pixelCount())
+        throw Error("denoise: the frame's buffers do not match its size " + std::to_string(width) + "x" +
+                    std::to_string(height) + " at " + std::to_string(frame.spp()) + " spp");
+
+    // Drop history where it cannot apply.
+    const float scale = depthScale(frame);
+    const float meanDepth = scale > 0.0f ? 1.0f / scale : 0.0f;
+    if (s.hasHistory) {
+        double degrees = 0.0, distance = 0.0;
+        cameraChange(s.worldToCamera, frame.info.worldToCamera, degrees, distance);
+        if (width != s.width || height != s.height)
+            local.resetReason = "frame size changed";
+        else if (degrees > 45.0)
+            local.resetReason = "camera turned by " + std::to_string(int(degrees)) + " degrees";
+        else if (meanDepth > 0.0f && distance > 0.5 * std::max(meanDepth, s.meanDepth))
+            local.resetReason = "camera moved by more than half the scene depth";
+        if (!local.resetReason.empty()) s.hasHistory = false;
+    }
+    s.width = width;
+    s.height = height;
+    s.worldToCamera = frame.info.worldToCamera;
+    s.meanDepth = meanDepth;
+    const bool history = s.hasHistory;
+    local.usedHistory = history;
+
+    // 1-2. Per-sample embedding averaged per pixel; noisy radiance.
+    local.invalidRadiance = net.embedding->apply(frame.samples().data(), height, width, frame.spp(), scale, s.embedding);
+    noisyRadiance(frame, s.radiance);
+
+    // 3. Histories: warped previous state where valid, the current frame elsewhere.
+    const std::vector<float> noHistory(history ? 0 : frame.pixelCount(), 0.0f);
+    const std::vector<float>& valid = history ? frame.valid() : noHistory;
+    if (history) {
+        warpBilinear(s.embeddingHistory, frame.motion().data(), s.warped);
+        selectHistory(s.warped, s.embedding, valid, s.historyEmbedding);
+        warpBilinear(s.radianceHistory, frame.motion().data(), s.warped);
+        selectHistory(s.warped, s.radiance, valid, s.historyRadiance);
+    } else {
+        s.historyEmbedding = s.embedding;
+        s.historyRadiance = s.radiance;
+    }
+
+    // 4-5. U-Net and per-pixel parameters.
+    s.runUnet(net);
+    const int K = net.kernels, F = net.affinityFeatures;
+    s.kernelFeatures.resize(K);
+    s.kernelBandwidth.resize(K);
+    s.kernelCentre.resize(K);
+    for (int k = 0; k < K; ++k) {
+        s.kernelFeatures[k].resize(height, width, F);
+        s.kernelBandwidth[k].resize(height, width, 1);
+        s.kernelCentre[k].resize(height, width, 1);
+    }
+    s.temporalBandwidth.resize(height, width, 1);
+    s.lambda.resize(height, width, 1);
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const float* o = s.head.pixel(y, x);
+            for (int k = 0; k < K; ++k) {
+                const float* base = o + k * (F + 2);
+                std::copy(base, base + F, s.kernelFeatures[k].pixel(y, x));
+                s.kernelBandwidth[k].pixel(y, x)[0] = base[F];
+                s.kernelCentre[k].pixel(y, x)[0] = sigmoid(base[F + 1]);
+            }
+            s.temporalBandwidth.pixel(y, x)[0] = o[K * (F + 2)];
+            s.lambda.pixel(y, x)[0] = sigmoid(o[K * (F + 2) + 1]);
+        }
+
+    // 3 (continued). Accumulate with the learned lambda; keep for the next frame.
+    blend(s.embedding, s.historyEmbedding, s.lambda, s.warped);
+    std::swap(s.embeddingHistory, s.warped);
+    blend(s.radiance, s.historyRadiance, s.lambda, s.filterA);
+    s.radianceHistory = s.filterA;
+
+    // 6. Dilated spatial kernels on the accumulated radiance.
+    FeatureMap* in = &s.filterA;
+    FeatureMap* out = &s.filterB;
+    for (int k = 0; k + 1 < K; ++k) {
+        affinityFilter(*in, {&s.kernelFeatures[k], &s.kernelBandwidth[k], &s.kernelCentre[k]}, net.tapSize, 1 << k, *out);
+        std::swap(in, out);
+    }
+    // 7. The last kernel, with temporal taps on the warped previous output.
+    const KernelParams last{&s.kernelFeatures[K - 1], &s.kernelBandwidth[K - 1], &s.kernelCentre[K - 1]};
+    if (history) {
+        warpBilinear(s.output, frame.motion().data(), s.warpedOutput);
+        warpBilinear(s.lastFeatures, frame.motion().data(), s.warpedFeatures);
+        s.validMap.resize(height, width, 1);
+        std::copy(valid.begin(), valid.end(), s.validMap.data());
+        affinityFilterTemporal(*in, last, net.tapSize, 1 << (K - 1), s.temporalBandwidth, s.warpedOutput,
+                               s.warpedFeatures, s.validMap, *out);
+    } else {
+        affinityFilter(*in, last, net.tapSize, 1 << (K - 1), *out);
+    }
+    std::swap(s.output, *out);
+    std::swap(s.lastFeatures, s.kernelFeatures[K - 1]);
+    s.hasHistory = true;
+
+    if (report) *report = local;
+    return std::vector<float>(s.output.data(), s.output.data() + s.output.size());
+}
+
+}  // namespace affinity

@@ -1,0 +1,139 @@
+#include "network.h"
+
+#include <set>
+
+#include "affinity/error.h"
+#include "affinity/weights.h"
+
+namespace affinity {
+namespace {
+
+class Builder {
+public:
+    explicit Builder(const Weights& weights) : weights_(weights) {}
+
+    [[noreturn]] void fail(const std::string& what) const {
+        throw Error("model " + weights_.source() + ": " + what);
+    }
+
+    int config(const std::string& name, int lo, int hi) {
+        if (!weights_.has(name)) fail("missing configuration tensor '" + name + "'");
+        used_.insert(name);
+        int value = weights_.integer(name);
+        if (value < lo || value > hi)
+            fail("'" + name + "' = " + std::to_string(value) + " is outside " + std::to_string(lo) + ".." +
+                 std::to_string(hi));
+        return value;
+    }
+
+    // A conv "<prefix>.weight" [out, in, size, size] + "<prefix>.bias" [out] whose input count
+    // must be `in` (-1: any).
+    Conv2d conv(const std::string& prefix, int in, int size) {
+        const std::string weightName = prefix + ".weight";
+        used_.insert({weightName, prefix + ".bias"});
+        const TensorView& w = weights_.tensor(weightName);
+        if (w.shape.size() != 4 || w.shape[2] != size || w.shape[3] != size)
+            fail("'" + weightName + "' must have shape [out, in, " + std::to_string(size) + ", " +
+                 std::to_string(size) + "]");
+        const int out = int(w.shape[0]);
+        if (in >= 0 && w.shape[1] != in)
+            fail("'" + weightName + "' takes " + std::to_string(w.shape[1]) + " input channels but receives " +
+                 std::to_string(in));
+        const float* bias = weights_.floats(prefix + ".bias", {out});
+        parameters_ += std::int64_t(w.count) + out;
+        return Conv2d(static_cast<const float*>(w.data), bias, out, int(w.shape[1]), size);
+    }
+
+    // Convolutions "<prefix>.conv0", "<prefix>.conv1", ... chained from `in` channels.
+    std::vector<Conv2d> block(const std::string& prefix, int in) {
+        std::vector<Conv2d> convs;
+        for (int j = 0; weights_.has(prefix + ".conv" + std::to_string(j) + ".weight"); ++j) {
+            convs.push_back(conv(prefix + ".conv" + std::to_string(j), in, 3));
+            in = convs.back().outChannels();
+        }
+        if (convs.empty()) fail("missing '" + prefix + ".conv0.weight'");
+        return convs;
+    }
+
+    std::vector<DenseLayer> embedding() {
+        std::vector<DenseLayer> layers;
+        int in = kFeatureChannels;
+        for (int i = 0; weights_.has("embed." + std::to_string(i) + ".weight"); ++i) {
+            const std::string prefix = "embed." + std::to_string(i);
+            used_.insert({prefix + ".weight", prefix + ".bias"});
+            const TensorView& w = weights_.tensor(prefix + ".weight");
+            if (w.shape.size() != 2 || w.shape[1] != in)
+                fail("'" + prefix + ".weight' must have shape [out, " + std::to_string(in) + "]");
+            DenseLayer layer;
+            layer.in = in;
+            layer.out = int(w.shape[0]);
+            const float* weight = weights_.floats(prefix + ".weight", {layer.out, in});
+            const float* bias = weights_.floats(prefix + ".bias", {layer.out});
+            layer.weight.assign(weight, weight + std::size_t(layer.out) * in);
+            layer.bias.assign(bias, bias + layer.out);
+            parameters_ += std::int64_t(layer.weight.size() + layer.bias.size());
+            in = layer.out;
+            layers.push_back(std::move(layer));
+        }
+        if (layers.empty()) fail("missing 'embed.0.weight'");
+        return layers;
+    }
+
+    std::int64_t parameters() const { return parameters_; }
+
+    // Every tensor must be part of the network: a stray one means a mismatched exporter.
+    void requireAllUsed() const {
+        for (const std::string& name : weights_.names())
+            if (!used_.count(name)) fail("unexpected tensor '" + name + "'");
+    }
+
+    static constexpr int kFeatureChannels = 18;
+
+private:
+    const Weights& weights_;
+    std::int64_t parameters_ = 0;
+    std::set<std::string> used_;
+};
+
+}  // namespace
+
+Network buildNetwork(const Weights& weights) {
+    Builder b(weights);
+    Network n;
+    n.source = weights.source();
+    const int version = b.config("config.version", 1, 1000);
+    if (version != 1) b.fail("model version " + std::to_string(version) + " is not supported (expected 1)");
+    n.kernels = b.config("config.kernels", 1, 8);
+    n.affinityFeatures = b.config("config.affinity_features", 1, 64);
+    n.tapSize = b.config("config.kernel_size", 1, 15);
+    if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
+
+    n.embedding.emplace(b.embedding());
+    const int embeddingChannels = n.embedding->outChannels();
+
+    int channels = 2 * embeddingChannels;  // concat(e_t, warped history)
+    std::vector<int> skipChannels;
+    for (int level = 0; weights.has("unet.enc" + std::to_string(level) + ".conv0.weight"); ++level) {
+        n.encoder.push_back(b.block("unet.enc" + std::to_string(level), channels));
+        channels = n.encoder.back().back().outChannels();
+        skipChannels.push_back(channels);
+    }
+    if (n.encoder.empty()) b.fail("missing 'unet.enc0.conv0.weight'");
+    n.bottleneck = b.block("unet.bottleneck", channels);
+    channels = n.bottleneck.back().outChannels();
+    n.decoder.resize(n.encoder.size());
+    for (int level = int(n.encoder.size()) - 1; level >= 0; --level) {
+        n.decoder[level] = b.block("unet.dec" + std::to_string(level), channels + skipChannels[level]);
+        channels = n.decoder[level].back().outChannels();
+    }
+    n.head.emplace(b.conv("unet.head", channels, 1));
+    if (n.head->outChannels() != n.headChannels())
+        b.fail("'unet.head.weight' has " + std::to_string(n.head->outChannels()) + " outputs but K = " +
+               std::to_string(n.kernels) + ", F = " + std::to_string(n.affinityFeatures) + " needs " +
+               std::to_string(n.headChannels()));
+    n.parameterCount = b.parameters();
+    b.requireAllUsed();
+    return n;
+}
+
+}  // namespace affinity

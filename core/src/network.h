@@ -1,0 +1,32 @@
+#pragma once
+// The network of docs/MODEL.md as inference objects, built from a weights file.
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "embedding.h"
+#include "unet_layers.h"
+
+namespace affinity {
+
+class Weights;
+
+struct Network {
+    std::string source;
+    std::optional<Embedding> embedding;
+    std::vector<std::vector<Conv2d>> encoder;  // [level][conv]
+    std::vector<Conv2d> bottleneck;
+    std::vector<std::vector<Conv2d>> decoder;  // [level][conv], level 0 = full resolution
+    std::optional<Conv2d> head;                // 1x1 convolution to headChannels()
+    int kernels = 3, affinityFeatures = 8, tapSize = 5;
+    std::int64_t parameterCount = 0;
+
+    // Head output channels: K (F + 2) + 2.
+    int headChannels() const { return kernels * (affinityFeatures + 2) + 2; }
+};
+
+// Throws affinity::Error naming the source and the first inconsistency.
+Network buildNetwork(const Weights& weights);
+
+}  // namespace affinity
