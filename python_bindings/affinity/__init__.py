@@ -29,7 +29,9 @@ from typing import Any
 from . import _core
 
 __all__ = [
+    "Denoiser",
     "Error",
+    "Model",
     "FEATURE_COUNT",
     "FEATURE_NAMES",
     "MAX_SPP",
@@ -88,3 +90,38 @@ def list_frame_files(directory: str | os.PathLike[str]) -> list[str]:
     Raises ``affinity.Error`` if the folder does not exist.
     """
     return _core.list_frame_files(os.fspath(directory))
+
+
+Model = _core.Model
+Model.__module__ = __name__
+
+
+class Denoiser:
+    """Denoises a frame sequence, keeping temporal state between calls.
+
+    Feed frames (dicts as returned by ``read_frame``) in sequence order; each call returns the
+    denoised linear RGB radiance as float32 (H, W, 3). Call ``reset()`` at a camera cut; the
+    history is also dropped automatically when the frame size changes or the camera jumps.
+    The GIL is released while denoising.
+    """
+
+    def __init__(self, model: str | os.PathLike[str] | Model | None = None) -> None:
+        if model is None:
+            model = Model.built_in()
+        elif not isinstance(model, Model):
+            model = Model.from_file(os.fspath(model))
+        self._native = _core.Denoiser(model)
+        #: What the last call did: invalid_radiance (NaN/Inf/negative values read as 0),
+        #: used_history, reset_reason.
+        self.last_report: dict[str, Any] = {}
+
+    @property
+    def model(self) -> Model:
+        return self._native.model
+
+    def denoise(self, frame: dict[str, Any]) -> Any:
+        output, self.last_report = self._native.denoise(frame)
+        return output
+
+    def reset(self) -> None:
+        self._native.reset()

@@ -12,10 +12,12 @@
 #include <utility>
 #include <vector>
 
+#include "affinity/denoiser.h"
 #include "affinity/error.h"
 #include "affinity/features.h"
 #include "affinity/frame.h"
 #include "affinity/frame_io.h"
+#include "affinity/model.h"
 
 namespace py = pybind11;
 
@@ -291,4 +293,39 @@ PYBIND11_MODULE(_core, m) {
         "list_frame_files",
         [](const std::filesystem::path& directory) { return listFrameFiles(directory.string()); },
         py::arg("directory"), "Frame files of a sequence folder, in frame order.");
+
+    py::class_<Model>(m, "Model", "A denoising model (weights + structure), see docs/MODEL.md.")
+        .def_static("built_in", &Model::builtIn, "The default model compiled into the library.")
+        .def_static(
+            "from_file", [](const std::filesystem::path& path) { return Model::fromFile(path.string()); },
+            py::arg("path"), "Loads a .affw weights file.")
+        .def_property_readonly("source", &Model::source)
+        .def_property_readonly("kernels", &Model::kernels)
+        .def_property_readonly("affinity_features", &Model::affinityFeatures)
+        .def_property_readonly("tap_size", &Model::tapSize)
+        .def_property_readonly("embedding_channels", &Model::embeddingChannels)
+        .def_property_readonly("parameter_count", &Model::parameterCount)
+        .def("flops_per_pixel", &Model::flopsPerPixel, py::arg("spp"));
+
+    py::class_<Denoiser>(m, "Denoiser", "Stateful sequence denoiser (see affinity.Denoiser).")
+        .def(py::init<Model>(), py::arg("model"))
+        .def(
+            "denoise",
+            [](Denoiser& self, const py::dict& frame) {
+                const SampleFrame native = frameFromDict(frame);
+                DenoiseReport report;
+                std::vector<float> rgb;
+                {
+                    py::gil_scoped_release release;
+                    rgb = self.denoise(native, &report);
+                }
+                py::dict info;
+                info["invalid_radiance"] = report.invalidRadiance;
+                info["used_history"] = report.usedHistory;
+                info["reset_reason"] = report.resetReason;
+                return py::make_tuple(arrayOwning(std::move(rgb), {native.height(), native.width(), 3}), info);
+            },
+            py::arg("frame"))
+        .def("reset", &Denoiser::reset)
+        .def_property_readonly("model", &Denoiser::model);
 }
