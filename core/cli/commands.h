@@ -7,5 +7,6 @@
 namespace affinity::cli {
 
 int renderCommand(const std::vector<std::string>& args);
+int denoiseCommand(const std::vector<std::string>& args);
 
 }  // namespace affinity::cli

@@ -16,7 +16,8 @@ void printUsage() {
                  "  render   render a per-sample frame sequence with its references\n"
                  "           --scene NAME_OR_FILE --frames N --spp S --size WxH --reference-spp R\n"
                  "           --seed K --out DIR [--first-frame F] [--compression none|zip|piz]\n"
-                 "           [--previews] [--force]\n");
+                 "           [--previews] [--force]\n"
+                 "  denoise  denoise a frame sequence: --in DIR --out DIR [--model FILE.affw] [--force]\n");
 }
 
 }  // namespace
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
     args.erase(args.begin());
     try {
         if (command == "render") return affinity::cli::renderCommand(args);
+        if (command == "denoise") return affinity::cli::denoiseCommand(args);
         std::fprintf(stderr, "affinity: unknown command '%s'\n", command.c_str());
         printUsage();
         return 2;

@@ -1,0 +1,99 @@
+// `affinity denoise`: denoises a sequence folder of frame files in order, writing float EXR
+// and tone-mapped PNG per frame, and a summary with timings and, where the frames carry a
+// reference, the error of the noisy input and of the output.
+#include <chrono>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+
+#include <nlohmann/json.hpp>
+
+#include "affinity/atomic_file.h"
+#include "affinity/denoiser.h"
+#include "affinity/error.h"
+#include "affinity/frame_io.h"
+#include "affinity/image_io.h"
+#include "affinity/metrics.h"
+#include "arguments.h"
+#include "commands.h"
+#include "progress_bar.h"
+
+namespace affinity::cli {
+
+namespace fs = std::filesystem;
+
+namespace {
+
+std::string numbered(const char* prefix, int index, const char* extension) {
+    char name[64];
+    std::snprintf(name, sizeof name, "%s_%04d.%s", prefix, index, extension);
+    return name;
+}
+
+nlohmann::json errors(const std::vector<float>& image, const std::vector<float>& reference) {
+    return {{"smape", smape(image.data(), reference.data(), image.size())},
+            {"relmse", relativeMse(image.data(), reference.data(), image.size())},
+            {"psnr", tonemappedPsnr(image.data(), reference.data(), image.size())}};
+}
+
+}  // namespace
+
+int denoiseCommand(const std::vector<std::string>& args) {
+    const Arguments a(args, {"--in", "--out", "--model"}, {"--force"});
+    const fs::path in = a.text("--in"), out = a.text("--out");
+    const std::vector<std::string> frames = listFrameFiles(in.string());
+    if (frames.empty()) throw Error("input folder " + in.string() + " holds no frame files (frame_NNNN.exr)");
+    std::error_code same;
+    if (fs::exists(out) && fs::equivalent(in, out, same))
+        throw Error("output folder must differ from the input folder " + in.string() + ": inputs are never overwritten");
+    if (fs::exists(out) && !fs::is_directory(out)) throw Error("output " + out.string() + " exists and is not a folder");
+    if (fs::is_directory(out) && !a.flag("--force"))
+        for (const auto& entry : fs::directory_iterator(out))
+            if (entry.path().filename().string().rfind("denoised_", 0) == 0)
+                throw Error("output folder " + out.string() + " already holds denoised frames; pass --force to overwrite them");
+    fs::create_directories(out);
+
+    Denoiser denoiser(a.has("--model") ? Model::fromFile(a.text("--model")) : Model::builtIn());
+    nlohmann::json perFrame = nlohmann::json::array();
+    ProgressBar bar("denoise");
+    double totalSeconds = 0.0;
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+        const SampleFrame frame = readFrame(frames[i]);
+        const auto start = std::chrono::steady_clock::now();
+        DenoiseReport report;
+        const std::vector<float> denoised = denoiser.denoise(frame, &report);
+        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        totalSeconds += seconds;
+        const int index = frame.info.frameIndex;
+        writeRgbExr((out / numbered("denoised", index, "exr")).string(), frame.width(), frame.height(), denoised.data());
+        writeTonemappedPng((out / numbered("denoised", index, "png")).string(), frame.width(), frame.height(),
+                           denoised.data());
+        nlohmann::json entry = {{"frame", index}, {"milliseconds", seconds * 1e3},
+                                {"used_history", report.usedHistory}, {"invalid_radiance", report.invalidRadiance}};
+        if (!report.resetReason.empty()) entry["reset_reason"] = report.resetReason;
+        if (report.invalidRadiance > 0)
+            std::fprintf(stderr, "\nwarning: %s: %lld NaN/Inf/negative radiance values read as 0\n", frames[i].c_str(),
+                         report.invalidRadiance);
+        if (frame.hasReference()) {
+            entry["noisy"] = errors(frame.meanRadiance(), frame.reference());
+            entry["denoised"] = errors(denoised, frame.reference());
+        }
+        perFrame.push_back(entry);
+        bar.update(double(i + 1) / double(frames.size()));
+    }
+    const nlohmann::json summary = {{"input", in.string()},
+                                    {"model", denoiser.model().source()},
+                                    {"frames", frames.size()},
+                                    {"milliseconds_per_frame", totalSeconds * 1e3 / double(frames.size())},
+                                    {"per_frame", perFrame}};
+    writeAtomically((out / "denoise_summary.json").string(), [&](const std::string& temporary) {
+        std::ofstream file(temporary);
+        file << summary.dump(2) << "\n";
+        if (!file) throw Error("cannot write " + (out / "denoise_summary.json").string());
+    });
+    bar.finish(std::to_string(frames.size()) + " frames, " +
+               std::to_string(int(totalSeconds * 1e3 / double(frames.size()))) + " ms per frame -> " + out.string());
+    return 0;
+}
+
+}  // namespace affinity::cli
