@@ -1,0 +1,171 @@
+// The sequence denoiser's contract: invariances, temporal behaviour, odd sizes, bad input.
+#include <cmath>
+
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include "affinity/denoiser.h"
+#include "affinity/error.h"
+#include "random_model.h"
+
+using namespace affinity;
+
+namespace {
+
+Model randomModel(unsigned seed = 1, float lambdaBias = 0.0f, float temporalBias = 0.0f) {
+    return Model::fromWeights(test::randomWeights(test::ModelShape{}, seed, lambdaBias, temporalBias));
+}
+
+double maxRelativeDifference(const std::vector<float>& a, const std::vector<float>& b) {
+    EXPECT_EQ(a.size(), b.size());
+    double worst = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        worst = std::max(worst, std::abs(double(a[i]) - b[i]) / (std::abs(double(b[i])) + 1e-3));
+    return worst;
+}
+
+bool allFinite(const std::vector<float>& v) {
+    for (float x : v)
+        if (!std::isfinite(x)) return false;
+    return true;
+}
+
+}  // namespace
+
+TEST(Denoiser, ModelStructureComesFromTheWeights) {
+    test::ModelShape shape;
+    shape.embedding = {24, 12};
+    shape.encoder = {6, 10, 14};
+    shape.kernels = 2;
+    shape.affinityFeatures = 5;
+    shape.tapSize = 3;
+    Model model = Model::fromWeights(test::randomWeights(shape, 3));
+    EXPECT_EQ(model.kernels(), 2);
+    EXPECT_EQ(model.affinityFeatures(), 5);
+    EXPECT_EQ(model.tapSize(), 3);
+    EXPECT_EQ(model.embeddingChannels(), 12);
+    std::int64_t parameters = 0;
+    for (const auto& t : test::randomModelTensors(shape, 3))
+        if (t.dtype == DType::Float32) parameters += std::int64_t(t.floats.size());
+    EXPECT_EQ(model.parameterCount(), parameters);
+    Denoiser denoiser(model);
+    auto frames = test::randomSequence(2, 9, 7, 2, 5);
+    for (const SampleFrame& f : frames) EXPECT_TRUE(allFinite(denoiser.denoise(f)));
+}
+
+TEST(Denoiser, InconsistentWeightsAreRejectedWithTheTensorName) {
+    auto tensors = test::randomModelTensors(test::ModelShape{}, 1);
+    for (auto& t : tensors)
+        if (t.name == "unet.dec0.conv0.weight") {
+            t.shape[1] += 1;
+            t.floats.resize(t.floats.size() + std::size_t(t.shape[0]) * 9);
+        }
+    auto bytes = train::serializeWeights(tensors);
+    try {
+        Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "bad.affw"));
+        FAIL() << "expected an error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("bad.affw"), std::string::npos) << e.what();
+        EXPECT_NE(std::string(e.what()).find("unet.dec0.conv0.weight"), std::string::npos) << e.what();
+    }
+    tensors = test::randomModelTensors(test::ModelShape{}, 1);
+    tensors.push_back({"unet.extra.weight", DType::Float32, {1}, {0.0f}, {}});
+    bytes = train::serializeWeights(tensors);
+    EXPECT_THROW(Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "extra.affw")), Error);
+}
+
+TEST(Denoiser, OutputDoesNotDependOnSampleOrder) {
+    auto frames = test::randomSequence(3, 16, 12, 4, 9);
+    auto permuted = frames;
+    for (SampleFrame& f : permuted)
+        for (int y = 0; y < f.height(); ++y)
+            for (int x = 0; x < f.width(); ++x) {
+                // Reverse the samples of every pixel.
+                for (int s = 0; s < f.spp() / 2; ++s)
+                    std::swap_ranges(f.sample(x, y, s), f.sample(x, y, s) + kFeatureCount, f.sample(x, y, f.spp() - 1 - s));
+            }
+    Denoiser a(randomModel()), b(randomModel());
+    for (std::size_t t = 0; t < frames.size(); ++t)
+        EXPECT_LT(maxRelativeDifference(a.denoise(frames[t]), b.denoise(permuted[t])), 1e-4) << "frame " << t;
+}
+
+TEST(Denoiser, ResetForgetsHistory) {
+    auto frames = test::randomSequence(3, 12, 10, 2, 4);
+    Denoiser sequence(randomModel()), fresh(randomModel());
+    sequence.denoise(frames[0]);
+    std::vector<float> withHistory = sequence.denoise(frames[1]);
+    std::vector<float> alone = fresh.denoise(frames[1]);
+    EXPECT_GT(maxRelativeDifference(withHistory, alone), 1e-3);  // history matters
+    sequence.reset();
+    DenoiseReport report;
+    EXPECT_EQ(sequence.denoise(frames[1], &report), alone);
+    EXPECT_FALSE(report.usedHistory);
+}
+
+// With lambda = 0 (no accumulation) and a huge temporal bandwidth (no temporal taps), frame 2
+// is denoised exactly as if it were alone.
+TEST(Denoiser, LambdaZeroEqualsSingleFrameDenoising) {
+    auto frames = test::randomSequence(2, 12, 10, 2, 6);
+    Denoiser sequence(randomModel(2, -1e4f, 1e4f)), single(randomModel(2, -1e4f, 1e4f));
+    sequence.denoise(frames[0]);
+    EXPECT_LT(maxRelativeDifference(sequence.denoise(frames[1]), single.denoise(frames[1])), 1e-6);
+}
+
+TEST(Denoiser, OddSizesWork) {
+    for (auto [w, h] : {std::pair{1, 1}, {7, 13}, {13, 7}, {1, 9}, {17, 3}, {33, 19}}) {
+        auto frames = test::randomSequence(2, w, h, 3, unsigned(w * 100 + h));
+        Denoiser denoiser(randomModel());
+        for (const SampleFrame& f : frames) {
+            std::vector<float> out = denoiser.denoise(f);
+            EXPECT_EQ(out.size(), std::size_t(w) * h * 3);
+            EXPECT_TRUE(allFinite(out)) << w << "x" << h;
+        }
+    }
+}
+
+TEST(Denoiser, ResultsDoNotDependOnThreadCount) {
+    auto frames = test::randomSequence(2, 21, 15, 2, 8);
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    Denoiser one(randomModel());
+    std::vector<float> a0 = one.denoise(frames[0]), a1 = one.denoise(frames[1]);
+    omp_set_num_threads(std::max(2, threads));
+    Denoiser many(randomModel());
+    std::vector<float> b0 = many.denoise(frames[0]), b1 = many.denoise(frames[1]);
+    omp_set_num_threads(threads);
+    EXPECT_EQ(a0, b0);
+    EXPECT_EQ(a1, b1);
+}
+
+TEST(Denoiser, BadRadianceGivesFiniteOutputAndAWarningCount) {
+    auto frames = test::randomSequence(2, 10, 8, 2, 3);
+    frames[1].sample(2, 3, 0)[channel::kDiffuse] = std::nanf("");
+    frames[1].sample(4, 4, 1)[channel::kSpecular + 2] = INFINITY;
+    frames[1].sample(5, 1, 0)[channel::kDiffuse + 1] = -3.0f;
+    frames[1].sample(0, 0, 1)[channel::kSpecular] = -INFINITY;
+    Denoiser denoiser(randomModel());
+    denoiser.denoise(frames[0]);
+    DenoiseReport report;
+    EXPECT_TRUE(allFinite(denoiser.denoise(frames[1], &report)));
+    EXPECT_EQ(report.invalidRadiance, 4);
+}
+
+TEST(Denoiser, HistoryIsDroppedWhenTheSizeChangesOrTheCameraJumps) {
+    Denoiser denoiser(randomModel());
+    auto small = test::randomSequence(2, 8, 6, 1, 1);
+    auto large = test::randomSequence(2, 9, 6, 1, 2);
+    DenoiseReport report;
+    denoiser.denoise(small[0]);
+    denoiser.denoise(large[1], &report);
+    EXPECT_FALSE(report.usedHistory);
+    EXPECT_EQ(report.resetReason, "frame size changed");
+    SampleFrame turned = large[1];
+    // 90 degrees about Y: the camera now looks along another axis.
+    turned.info.worldToCamera = {0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, -5, 0, 0, 0, 1};
+    denoiser.denoise(turned, &report);
+    EXPECT_FALSE(report.usedHistory);
+    EXPECT_NE(report.resetReason.find("camera turned"), std::string::npos);
+    denoiser.denoise(turned, &report);
+    EXPECT_TRUE(report.usedHistory);
+    EXPECT_TRUE(report.resetReason.empty());
+}
