@@ -3,6 +3,7 @@
 // section 1: every sample's 18 features through a small MLP, averaged per pixel.
 #include <vector>
 
+#include "conv_kernel.h"
 #include "feature_map.h"
 
 namespace affinity {
@@ -15,18 +16,21 @@ struct DenseLayer {
 
 class Embedding {
 public:
-    explicit Embedding(std::vector<DenseLayer> layers);  // validates chained sizes
+    // Validates the chain: at least one layer, the first takes kFeatureCount inputs, each
+    // takes what the previous gives, weight and bias sizes match (throws affinity::Error).
+    explicit Embedding(std::vector<DenseLayer> layers);
     int outChannels() const;
-    const std::vector<DenseLayer>& layers() const { return layers_; }
 
     // samples: [pixels][spp][kFeatureCount] raw features (frame layout); depthScale from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).
     // Non-finite or negative radiance is treated as 0; returns how many radiance values were.
+    // Multithreaded; the result does not depend on the thread count.
     long long apply(const float* samples, int height, int width, int spp, float depthScale,
                     FeatureMap& output) const;
 
 private:
-    std::vector<DenseLayer> layers_;
+    std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples
+    int widest_ = 0;                  // most outputs of any layer
 };
 
 }  // namespace affinity

@@ -1,0 +1,59 @@
+#pragma once
+// The register-blocked convolution kernel behind Conv2d (3x3 and 1x1) and the embedding's
+// dense layers (a dense layer is a 1x1 convolution over a row of samples). NHWC in and out,
+// vectorised over output channels, no threading: callers split the output into rows and
+// column ranges. Every output value is accumulated in the same fixed order (bias, then taps
+// row-major, then input channels in concatenation order) whatever the split, so results do
+// not depend on how work is divided among threads.
+#include <cstddef>
+#include <vector>
+
+#include "aligned_allocator.h"
+
+namespace affinity {
+
+enum class Activation { None, LeakyRelu };  // leaky ReLU slope 0.01
+
+// One input of a convolution: an NHWC image of the output's height and width.
+struct ConvSource {
+    const float* data;
+    int channels;
+};
+
+// Weights and bias of a size x size convolution (size 1 or 3), repacked for the kernel.
+class PackedConv {
+public:
+    PackedConv() = default;
+    // torchWeights: [outChannels][inChannels][size][size]; bias: [outChannels] or null (zero).
+    PackedConv(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size);
+
+    int outChannels() const { return out_; }
+    int inChannels() const { return in_; }
+    int size() const { return size_; }
+
+    // Output channels are split into blocks of one or two 8-lane vectors; block b holds
+    // weights [tap][inChannel][lanes] (lanes = 8 * vectors, zero past outChannels).
+    struct Block {
+        int firstChannel;
+        int vectors;
+        std::size_t offset;  // into weights(), in floats
+    };
+    const std::vector<Block>& blocks() const { return blocks_; }
+    const float* weights() const { return weights_.data(); }
+    const float* bias() const { return bias_.data(); }  // padded to the block lanes
+
+private:
+    int out_ = 0, in_ = 0, size_ = 0;
+    std::vector<Block> blocks_;
+    AlignedVector<float> weights_;
+    AlignedVector<float> bias_;
+};
+
+// Computes output row y, columns [x0, x1), all output channels, of
+// act(conv(concat(sources)) + bias) with zero padding, for images of height x width.
+// outputRow points at column 0 of row y of an NHWC output with conv.outChannels() channels.
+// The sources' channel counts must add up to conv.inChannels(); the output must not alias them.
+void convolveRow(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width,
+                 int y, int x0, int x1, Activation activation, float* outputRow);
+
+}  // namespace affinity

@@ -1,0 +1,143 @@
+#include "embedding.h"
+
+#include <algorithm>
+#include <string>
+
+#include "affinity/error.h"
+#include "affinity/features.h"
+#include "aligned_allocator.h"
+#include "fast_log1p.h"
+
+namespace affinity {
+namespace {
+
+// Samples per work item: the item's activations (two buffers of this many rows) stay in L1.
+constexpr int kChunkSamples = 96;
+constexpr int kRadianceChannels = 6;  // diffuse and specular, in front of the other features
+constexpr int kOtherChannels = kFeatureCount - kRadianceChannels;
+static_assert(channel::kDiffuse == 0 && channel::kSpecular == 3, "radiance leads the sample");
+
+// The input transform of MODEL.md section 1 for `count` consecutive samples, split into the
+// radiance part ([count][6], log1p applied) and the rest ([count][12]) so the log1p loop runs
+// over contiguous floats. Returns how many radiance values were non-finite or negative.
+long long transformSamples(const float* samples, int count, float depthScale, float* radiance, float* other) {
+    long long bad = 0;
+    for (int s = 0; s < count; ++s) {
+        const float* in = samples + std::size_t(s) * kFeatureCount;
+        for (int k = 0; k < kRadianceChannels; ++k) {
+            const float v = in[k];
+            // False for NaN, negative values and +Inf (-Inf is negative).
+            const bool ok = v >= 0.0f && v <= 3.40282347e38f;
+            bad += ok ? 0 : 1;
+            radiance[s * kRadianceChannels + k] = ok ? v : 0.0f;
+        }
+        float* o = other + std::size_t(s) * kOtherChannels;
+        for (int k = 0; k < kOtherChannels; ++k) o[k] = in[kRadianceChannels + k];
+        o[channel::kDepth - kRadianceChannels] *= depthScale;
+    }
+    const int n = count * kRadianceChannels;
+#pragma omp simd
+    for (int i = 0; i < n; ++i) radiance[i] = log1pNonNegative(radiance[i]);
+    return bad;
+}
+
+}  // namespace
+
+Embedding::Embedding(std::vector<DenseLayer> layers) {
+    if (layers.empty()) throw Error("Embedding: no layers");
+    int expected = kFeatureCount;
+    for (std::size_t i = 0; i < layers.size(); ++i) {
+        const DenseLayer& layer = layers[i];
+        const std::string name = "Embedding layer " + std::to_string(i);
+        if (layer.in != expected)
+            throw Error(name + " takes " + std::to_string(layer.in) + " inputs, expected " + std::to_string(expected));
+        if (layer.out <= 0) throw Error(name + " has " + std::to_string(layer.out) + " outputs");
+        if (layer.weight.size() != std::size_t(layer.in) * std::size_t(layer.out))
+            throw Error(name + ": weight has " + std::to_string(layer.weight.size()) + " values, expected " +
+                        std::to_string(std::size_t(layer.in) * std::size_t(layer.out)));
+        if (layer.bias.size() != std::size_t(layer.out))
+            throw Error(name + ": bias has " + std::to_string(layer.bias.size()) + " values, expected " +
+                        std::to_string(layer.out));
+        layers_.emplace_back(layer.weight.data(), layer.bias.data(), layer.out, layer.in, 1);
+        widest_ = std::max(widest_, layer.out);
+        expected = layer.out;
+    }
+}
+
+int Embedding::outChannels() const { return layers_.back().outChannels(); }
+
+long long Embedding::apply(const float* samples, int height, int width, int spp, float depthScale,
+                           FeatureMap& output) const {
+    if (height < 0 || width < 0 || spp <= 0)
+        throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
+                    std::to_string(spp) + " samples per pixel");
+    output.resize(height, width, outChannels());
+    const long long pixels = (long long)height * width;
+    if (pixels == 0) return 0;
+
+    // The last layer has no activation, so the mean over samples commutes with it: average
+    // the previous layer's outputs and apply the last layer once per pixel instead of once
+    // per sample (the same function up to float rounding, and S times fewer operations there).
+    const int chunkPixels = std::max(1, kChunkSamples / spp);
+    const int chunkSamples = chunkPixels * spp;
+    const long long chunks = (pixels + chunkPixels - 1) / chunkPixels;
+    const std::size_t layerCount = layers_.size();
+    const int meanChannels = layerCount == 1 ? kFeatureCount : layers_[layerCount - 2].outChannels();
+    const float inverseSpp = 1.0f / float(spp);
+    long long bad = 0;
+
+#pragma omp parallel reduction(+ : bad) if (pixels * spp >= 4096)
+    {
+        AlignedVector<float> radiance(std::size_t(chunkSamples) * kRadianceChannels);
+        AlignedVector<float> other(std::size_t(chunkSamples) * kOtherChannels);
+        AlignedVector<float> ping(std::size_t(chunkSamples) * widest_);
+        AlignedVector<float> pong(std::size_t(chunkSamples) * widest_);
+        AlignedVector<float> mean(std::size_t(chunkPixels) * std::max(meanChannels, kFeatureCount));
+
+#pragma omp for schedule(dynamic, 16)
+        for (long long chunk = 0; chunk < chunks; ++chunk) {
+            const long long p0 = chunk * chunkPixels;
+            const int count = int(std::min<long long>(chunkPixels, pixels - p0));
+            const int n = count * spp;
+            bad += transformSamples(samples + std::size_t(p0) * spp * kFeatureCount, n, depthScale, radiance.data(),
+                                    other.data());
+
+            // Hidden layers per sample; `sources` is what feeds the next layer.
+            ConvSource sources[2] = {{radiance.data(), kRadianceChannels}, {other.data(), kOtherChannels}};
+            int sourceCount = 2;
+            float* next = ping.data();
+            for (std::size_t l = 0; l + 1 < layerCount; ++l) {
+                convolveRow(layers_[l], sources, sourceCount, 1, n, 0, 0, n, Activation::LeakyRelu, next);
+                sources[0] = {next, layers_[l].outChannels()};
+                sourceCount = 1;
+                next = next == ping.data() ? pong.data() : ping.data();
+            }
+
+            // Mean over each pixel's samples, in sample order, of every source channel.
+            int offset = 0;
+            for (int i = 0; i < sourceCount; ++i) {
+                const int channels = sources[i].channels;
+                for (int p = 0; p < count; ++p) {
+                    float* m = mean.data() + std::size_t(p) * meanChannels + offset;
+                    const float* h = sources[i].data + std::size_t(p) * spp * channels;
+                    for (int c = 0; c < channels; ++c) m[c] = h[c];
+                    for (int s = 1; s < spp; ++s) {
+                        const float* hs = h + std::size_t(s) * channels;
+#pragma omp simd
+                        for (int c = 0; c < channels; ++c) m[c] += hs[c];
+                    }
+#pragma omp simd
+                    for (int c = 0; c < channels; ++c) m[c] *= inverseSpp;
+                }
+                offset += channels;
+            }
+
+            const ConvSource meanSource{mean.data(), meanChannels};
+            convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count, Activation::None,
+                        output.data() + std::size_t(p0) * outChannels());
+        }
+    }
+    return bad;
+}
+
+}  // namespace affinity

@@ -1,0 +1,107 @@
+#include "unet_layers.h"
+
+#include <algorithm>
+#include <cstring>
+#include <string>
+
+#include "affinity/error.h"
+
+namespace affinity {
+namespace {
+
+// Columns per task: the tile's three input rows stay in L2 while each channel block's
+// weights stay in L1.
+constexpr int kTileWidth = 128;
+// Below this many multiply-adds a layer runs on the calling thread: waking the team costs
+// more than it saves (the U-Net's deepest levels at small frame sizes).
+constexpr double kParallelMinFma = 2e5;
+
+std::string shapeText(const FeatureMap& map) {
+    return std::to_string(map.height()) + "x" + std::to_string(map.width()) + "x" + std::to_string(map.channels());
+}
+
+}  // namespace
+
+Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size)
+    : packed_(torchWeights, bias, outChannels, inChannels, size) {}
+
+void Conv2d::apply(const FeatureMap& input, Activation activation, FeatureMap& output) const {
+    if (input.channels() != inChannels())
+        throw Error("Conv2d: input " + shapeText(input) + " has " + std::to_string(input.channels()) +
+                    " channels, the layer expects " + std::to_string(inChannels()));
+    if (&input == &output) throw Error("Conv2d: the output must not be the input");
+    const ConvSource source{input.data(), input.channels()};
+    run(&source, 1, input.height(), input.width(), activation, output);
+}
+
+void Conv2d::apply(const FeatureMap& first, const FeatureMap& second, Activation activation,
+                   FeatureMap& output) const {
+    if (first.height() != second.height() || first.width() != second.width())
+        throw Error("Conv2d: concatenated inputs differ in size: " + shapeText(first) + " and " + shapeText(second));
+    if (first.channels() + second.channels() != inChannels())
+        throw Error("Conv2d: concatenated inputs " + shapeText(first) + " and " + shapeText(second) + " have " +
+                    std::to_string(first.channels() + second.channels()) + " channels, the layer expects " +
+                    std::to_string(inChannels()));
+    if (&first == &output || &second == &output) throw Error("Conv2d: the output must not be an input");
+    const ConvSource sources[2] = {{first.data(), first.channels()}, {second.data(), second.channels()}};
+    // A source without channels contributes nothing; skipping it keeps the kernel's loops simple.
+    const int offset = first.channels() == 0 ? 1 : 0;
+    const int count = 2 - offset - (second.channels() == 0 ? 1 : 0);
+    run(sources + offset, count, first.height(), first.width(), activation, output);
+}
+
+void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
+                 FeatureMap& output) const {
+    output.resize(height, width, outChannels());
+    if (output.empty()) return;
+    const int tiles = (width + kTileWidth - 1) / kTileWidth;
+    const long long tasks = (long long)height * tiles;
+    const double fmaCount = double(height) * width * outChannels() * inChannels() * size() * size();
+    // Each task owns whole output pixels, so the split cannot change any value; dynamic
+    // scheduling only balances load when another process competes for the cores.
+#pragma omp parallel for schedule(dynamic) if (fmaCount >= kParallelMinFma)
+    for (long long task = 0; task < tasks; ++task) {
+        const int y = int(task / tiles);
+        const int x0 = int(task % tiles) * kTileWidth;
+        const int x1 = std::min(width, x0 + kTileWidth);
+        convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0));
+    }
+}
+
+void maxPool2x2(const FeatureMap& input, FeatureMap& output) {
+    if (&input == &output) throw Error("maxPool2x2: the output must not be the input");
+    const int height = input.height(), width = input.width(), channels = input.channels();
+    output.resize((height + 1) / 2, (width + 1) / 2, channels);
+    const int outHeight = output.height(), outWidth = output.width();
+#pragma omp parallel for schedule(static) if (output.size() >= (1 << 16))
+    for (int y = 0; y < outHeight; ++y) {
+        // A missing last row or column repeats the one before it: max(a, a) = a.
+        const int y0 = 2 * y, y1 = std::min(2 * y + 1, height - 1);
+        for (int x = 0; x < outWidth; ++x) {
+            const int x0 = 2 * x, x1 = std::min(2 * x + 1, width - 1);
+            const float* a = input.pixel(y0, x0);
+            const float* b = input.pixel(y0, x1);
+            const float* c = input.pixel(y1, x0);
+            const float* d = input.pixel(y1, x1);
+            float* o = output.pixel(y, x);
+#pragma omp simd
+            for (int k = 0; k < channels; ++k) o[k] = std::max(std::max(a[k], b[k]), std::max(c[k], d[k]));
+        }
+    }
+}
+
+void upsampleNearest(const FeatureMap& input, int height, int width, FeatureMap& output) {
+    if (&input == &output) throw Error("upsampleNearest: the output must not be the input");
+    if (height < 0 || width < 0 || (height + 1) / 2 > input.height() || (width + 1) / 2 > input.width())
+        throw Error("upsampleNearest: input " + shapeText(input) + " does not cover an output of " +
+                    std::to_string(height) + "x" + std::to_string(width));
+    const int channels = input.channels();
+    output.resize(height, width, channels);
+    const std::size_t pixelBytes = std::size_t(channels) * sizeof(float);
+#pragma omp parallel for schedule(static) if (output.size() >= (1 << 16))
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) std::memcpy(output.pixel(y, x), input.pixel(y / 2, x / 2), pixelBytes);
+    }
+}
+
+}  // namespace affinity
