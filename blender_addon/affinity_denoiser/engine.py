@@ -1,0 +1,97 @@
+"""A render engine that is Cycles, plus in-memory access to the finished render result.
+
+In background mode ``bpy.data.images['Render Result']`` has no pixels, and writing a
+multilayer EXR per sub-render and reading it back is slower (docs/BLENDER.md, "Reading
+passes"). A subclass of Cycles' own engine class can read every pass of its result right after
+Cycles finishes a frame. The same engine can also *present* a frame: instead of rendering, it
+fills the render result with given passes (the denoised image as Combined), so that Blender's
+compositor and file output run on the denoised frame.
+
+The pipeline switches the scene to this engine for the duration of a denoise-render only.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import numpy as np
+
+IDNAME = "AFFINITY_DENOISER_CYCLES"
+
+_engine_class: type | None = None
+
+
+class _Session:
+    """What the next render should do: capture into ``sink`` or present ``frame``."""
+
+    def __init__(self) -> None:
+        self.sink: Callable[[Any], None] | None = None
+        self.present: dict[str, np.ndarray] | None = None
+
+
+session = _Session()
+
+
+def _write_result(engine: Any, width: int, height: int, frame: dict[str, np.ndarray]) -> None:
+    result = engine.begin_result(0, 0, width, height)
+    try:
+        for render_pass in result.layers[0].passes:
+            image = frame.get(render_pass.name)
+            channels = render_pass.channels
+            if image is None or image.shape != (height, width, channels):
+                image = np.zeros((height, width, channels), np.float32)
+            render_pass.rect.foreach_set(np.ascontiguousarray(image[::-1], np.float32).ravel())
+    finally:
+        engine.end_result(result)
+
+
+def _make_engine_class() -> type:
+    import cycles  # Blender's bundled Cycles add-on
+
+    class AffinityCyclesEngine(cycles.CyclesRender):
+        """Cycles with in-memory pass capture (internal to the Affinity Denoiser)."""
+
+        bl_idname = IDNAME
+        bl_label = "Cycles (Affinity Denoiser capture)"
+
+        def update(self, data: Any, depsgraph: Any) -> None:
+            if session.present is None:
+                super().update(data, depsgraph)
+
+        def render(self, depsgraph: Any) -> None:
+            if session.present is not None:
+                scene = depsgraph.scene
+                scale = scene.render.resolution_percentage / 100.0
+                width = int(scene.render.resolution_x * scale)
+                height = int(scene.render.resolution_y * scale)
+                _write_result(self, width, height, session.present)
+                return
+            super().render(depsgraph)
+
+        def render_frame_finish(self) -> None:
+            if session.present is not None:
+                return
+            # Cycles completes tiled results here, so the result is read afterwards.
+            super().render_frame_finish()
+            if session.sink is not None and not self.test_break():
+                session.sink(self.get_result())
+
+    return AffinityCyclesEngine
+
+
+def register() -> None:
+    global _engine_class
+    import bpy
+
+    if _engine_class is None:
+        _engine_class = _make_engine_class()
+    bpy.utils.register_class(_engine_class)
+
+
+def unregister() -> None:
+    global _engine_class
+    import bpy
+
+    if _engine_class is not None:
+        bpy.utils.unregister_class(_engine_class)
+        _engine_class = None

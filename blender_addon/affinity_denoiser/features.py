@@ -1,0 +1,107 @@
+"""Cycles passes of one sample -> the 18 per-sample features of docs/FEATURES.md.
+
+Each choice, and where Cycles cannot give a feature exactly as our renderer defines it, is
+documented in docs/BLENDER.md ("Feature mapping").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from .motion import Camera
+
+FEATURE_COUNT = 18
+# Channel offsets, in the order of docs/FEATURES.md.
+DIFFUSE, SPECULAR, NORMAL, DEPTH, ALBEDO = 0, 3, 6, 9, 10
+ROUGHNESS, EMISSIVE, METALLIC, TRANSMISSIVE, SPECULAR_BOUNCE = 13, 14, 15, 16, 17
+#: kRoughnessFloor in core/include/affinity/features.h.
+ROUGHNESS_FLOOR = 0.02
+#: Cycles' denoising normal is in its camera space, whose Z axis points forward.
+_CYCLES_CAMERA_TO_BLENDER_CAMERA = np.diag([1.0, 1.0, -1.0])
+#: The path went past its first hit when the denoising depth exceeds the hit's distance by this
+#: fraction (both are float32 sums of the same segments).
+_BOUNCE_TOLERANCE = 1e-3
+
+
+def rgb(image: np.ndarray) -> np.ndarray:
+    return image[..., :3]
+
+
+def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndarray) -> np.ndarray:
+    """The (H, W, 18) float32 features of one sample from its passes keyed by role.
+
+    ``ray_start`` is ``motion.ray_start_distance(camera)``: Cycles measures its denoising depth
+    from the near plane, the schema from the eye.
+    """
+    height, width = p["combined"].shape[:2]
+    out = np.zeros((height, width, FEATURE_COUNT), np.float32)
+
+    # Radiance: Cycles' light passes are stored divided by their colour pass.
+    diffuse = (rgb(p["diffuse_direct"]) + rgb(p["diffuse_indirect"])) * rgb(p["diffuse_color"])
+    out[..., DIFFUSE:DIFFUSE + 3] = diffuse
+    out[..., SPECULAR:SPECULAR + 3] = np.maximum(rgb(p["combined"]) - diffuse, 0.0)
+
+    # v is where Cycles wrote its denoising features: the first hit that is not (near) specular.
+    cycles_normal = rgb(p["denoising_normal"]).astype(np.float64)
+    length = np.linalg.norm(cycles_normal, axis=-1)
+    reached_v = length > 0.5
+    rotation = camera.camera_to_world[:3, :3] @ _CYCLES_CAMERA_TO_BLENDER_CAMERA
+    normal = (cycles_normal / np.maximum(length, 1e-12)[..., None]) @ rotation.T
+    out[..., NORMAL:NORMAL + 3] = np.where(reached_v[..., None], normal, 0.0)
+
+    first_distance = p["aov_distance"][..., 0]
+    has_surface_aov = first_distance > 0.0
+    emitter_first = rgb(p["emission"]).max(axis=-1) > 0.0
+    # Nothing with a BSDF was reached and the first hit does not emit: the path escaped
+    # (directly or through mirrors / clear glass).
+    miss = ~reached_v & ~emitter_first
+
+    if "denoising_depth" in p:
+        denoising_depth = p["denoising_depth"][..., 0]
+        path_length = np.where(denoising_depth > 0.0, denoising_depth + ray_start, 0.0)
+    else:  # Cycles without a denoising depth pass: the first hit's distance
+        path_length = first_distance
+    out[..., DEPTH] = np.where(miss, 0.0, path_length)
+
+    out[..., ALBEDO:ALBEDO + 3] = np.where(
+        reached_v[..., None], np.clip(rgb(p["denoising_albedo"]), 0.0, 1.0), 0.0
+    )
+
+    surface = rgb(p["aov_surface"])
+    roughness = np.where(has_surface_aov, np.clip(surface[..., 0], ROUGHNESS_FLOOR, 1.0), 1.0)
+    out[..., ROUGHNESS] = np.where(miss, 0.0, roughness)
+    out[..., EMISSIVE] = miss | emitter_first
+    out[..., METALLIC] = ~miss & has_surface_aov & (surface[..., 1] > 0.5)
+    out[..., TRANSMISSIVE] = has_surface_aov & (surface[..., 2] > 0.5)
+
+    went_on = path_length > first_distance * (1.0 + _BOUNCE_TOLERANCE) + 1e-4
+    out[..., SPECULAR_BOUNCE] = has_surface_aov & (went_on | miss)
+    return out
+
+
+def frame_dict(
+    samples: np.ndarray,
+    motion: np.ndarray,
+    valid: np.ndarray,
+    camera: Camera,
+    scene_name: str,
+    frame_index: int,
+    seed: int,
+) -> dict[str, Any]:
+    """A frame in the layout of affinity.read_frame / write_frame (docs/FRAME_FILES.md)."""
+    return {
+        "samples": np.ascontiguousarray(samples, dtype=np.float32),
+        "motion": np.ascontiguousarray(motion, dtype=np.float32),
+        "valid": np.ascontiguousarray(valid, dtype=np.float32),
+        "reference": None,
+        "info": {
+            "scene_name": scene_name,
+            "frame_index": int(frame_index),
+            "reference_spp": 0,
+            "seed": int(seed) & 0xFFFFFFFFFFFFFFFF,
+            "world_to_camera": camera.world_to_camera.astype(np.float32),
+            "camera_to_clip": camera.camera_to_clip.astype(np.float32),
+        },
+    }

@@ -1,0 +1,122 @@
+"""Where denoised frames go, and writing them atomically without overwriting anything.
+
+Files of one frame F (four digits, more when needed):
+
+- ``denoised_FFFF.exr``: the denoised linear RGBA, 32-bit float, before compositing;
+- ``final_FFFF.<ext>``: the scene's own output format, composited from the denoised frame;
+- ``samples/frame_FFFF.exr`` (optional): the per-sample frame file of docs/FRAME_FILES.md.
+
+The default folder is ``affinity_denoised`` beside the render output. When any file a run would
+write already exists there, the run uses ``affinity_denoised_001`` (``_002``, ...) instead, so
+nothing rendered before is overwritten. Every file is written under a temporary name in the
+same folder and renamed into place when complete: a cancelled or failed write leaves no file.
+"""
+
+from __future__ import annotations
+
+import itertools
+import os
+from typing import Any, Callable, Iterable
+
+import numpy as np
+
+DEFAULT_FOLDER_NAME = "affinity_denoised"
+SAMPLES_SUBFOLDER = "samples"
+
+
+def frame_tag(frame: int) -> str:
+    return f"{frame:04d}" if frame >= 0 else f"-{-frame:04d}"
+
+
+def denoised_name(frame: int) -> str:
+    return f"denoised_{frame_tag(frame)}.exr"
+
+
+def final_name(frame: int, extension: str) -> str:
+    return f"final_{frame_tag(frame)}{extension}"
+
+
+def sample_frame_name(frame: int) -> str:
+    return os.path.join(SAMPLES_SUBFOLDER, f"frame_{frame_tag(frame)}.exr")
+
+
+def base_folder(scene: Any, folder_setting: str) -> str:
+    """The folder the user asked for, or ``affinity_denoised`` beside the render output."""
+    import bpy
+
+    if folder_setting:
+        return os.path.abspath(bpy.path.abspath(folder_setting))
+    render_path = bpy.path.abspath(scene.render.filepath) or bpy.app.tempdir
+    render_dir = render_path if render_path.endswith(os.sep) else os.path.dirname(render_path)
+    return os.path.join(os.path.abspath(render_dir or "."), DEFAULT_FOLDER_NAME)
+
+
+def choose_run_folder(base: str, names: Iterable[str]) -> str:
+    """``base``, or the first ``base_NNN`` in which none of ``names`` exists yet."""
+    names = list(names)
+    for index in itertools.count():
+        folder = base if index == 0 else f"{base}_{index:03d}"
+        if not any(os.path.lexists(os.path.join(folder, n)) for n in names):
+            return folder
+    raise AssertionError("unreachable")
+
+
+_temp_counter = itertools.count()
+
+
+def write_atomic(path: str, write: Callable[[str], None]) -> None:
+    """Calls ``write(temporary_path)`` and renames the result to ``path``.
+
+    The temporary file sits in the same folder and keeps the extension (Blender picks writers
+    by it). It is removed if ``write`` fails or is interrupted. An existing ``path`` is never
+    replaced: that would overwrite a file the user has.
+    """
+    folder, name = os.path.split(path)
+    os.makedirs(folder, exist_ok=True)
+    stem, extension = os.path.splitext(name)
+    temporary = os.path.join(folder, f".{stem}.tmp-{os.getpid()}-{next(_temp_counter)}{extension}")
+    try:
+        write(temporary)
+        if not os.path.isfile(temporary):
+            raise OSError(f"{path}: nothing was written")
+        if os.path.lexists(path):
+            raise FileExistsError(f"{path}: exists already, not overwritten")
+        os.rename(temporary, path)
+    finally:
+        if os.path.lexists(temporary):
+            os.remove(temporary)
+
+
+def write_float_exr(path: str, rgba: np.ndarray) -> None:
+    """Writes (H, W, 4) linear RGBA (top row first) as a 32-bit float OpenEXR, atomically."""
+    import bpy
+
+    height, width = rgba.shape[:2]
+
+    def write(temporary: str) -> None:
+        image = bpy.data.images.new(
+            "affinity_denoised_tmp", width, height, alpha=True, float_buffer=True
+        )
+        try:
+            # Non-Color before the pixels: with a 'Linear' space, saving applied a view transform.
+            image.colorspace_settings.name = "Non-Color"
+            image.pixels.foreach_set(np.ascontiguousarray(rgba[::-1], np.float32).ravel())
+            if hasattr(image, "use_half_precision"):
+                image.use_half_precision = False
+            image.filepath_raw = temporary
+            image.file_format = "OPEN_EXR"
+            image.save()
+        finally:
+            bpy.data.images.remove(image)
+
+    write_atomic(path, write)
+
+
+def write_render_result(path: str, scene: Any) -> None:
+    """Saves the current Render Result (after compositing) in the scene's format, atomically."""
+    import bpy
+
+    result = bpy.data.images.get("Render Result")
+    if result is None:
+        raise RuntimeError("Blender produced no render result to save")
+    write_atomic(path, lambda temporary: result.save_render(temporary, scene=scene))

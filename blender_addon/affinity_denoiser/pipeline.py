@@ -1,0 +1,272 @@
+"""A denoise-render: per frame, S one-sample Cycles sub-renders -> features -> core -> files.
+
+``DenoiseRender.steps()`` is a generator that does one sub-render per step, so the same job
+runs to completion from a script (``run()``) or one step per timer tick from a modal operator
+(which can cancel between steps by closing the generator). Every temporary change to the scene,
+its view layer and its materials is undone in ``finally`` blocks, also on error or cancel.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Iterator
+
+import numpy as np
+
+from . import backend, compositor, engine, features, materials, motion, output, passes
+from .overrides import Overrides
+
+MAX_SAMPLES_PER_FRAME = 8
+
+
+class Cancelled(RuntimeError):
+    """The render was cancelled (Esc, or the render job reported a break)."""
+
+
+@dataclass
+class Settings:
+    samples_per_frame: int = 4
+    model_path: str = ""
+    temporal: bool = True
+    output_folder: str = ""
+    keep_sample_frames: bool = False
+
+    @classmethod
+    def from_properties(cls, props: Any) -> "Settings":
+        return cls(
+            samples_per_frame=props.samples_per_frame,
+            model_path=props.model_path,
+            temporal=props.temporal,
+            output_folder=props.output_folder,
+            keep_sample_frames=props.keep_sample_frames,
+        )
+
+
+@dataclass
+class FrameResult:
+    frame: int
+    denoised_path: str
+    final_path: str
+    sample_frame_path: str | None
+    noisy: np.ndarray  # (H, W, 3) mean of the samples' radiance
+    denoised: np.ndarray  # (H, W, 3)
+    denoiser_report: dict[str, Any]
+
+
+@dataclass
+class Timings:
+    sub_renders: list[float] = field(default_factory=list)
+    denoise: list[float] = field(default_factory=list)
+    present: list[float] = field(default_factory=list)
+    write: list[float] = field(default_factory=list)
+
+
+ProgressCallback = Callable[[int, int, str], None]
+
+
+class DenoiseRender:
+    """Renders and denoises ``frames`` of ``scene`` (its ``view_layer`` only)."""
+
+    def __init__(
+        self,
+        scene: Any,
+        view_layer: Any,
+        frames: list[int],
+        settings: Settings,
+        progress: ProgressCallback | None = None,
+    ) -> None:
+        if not frames:
+            raise ValueError("no frames to render")
+        if not 1 <= settings.samples_per_frame <= MAX_SAMPLES_PER_FRAME:
+            raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
+        self.scene = scene
+        self.view_layer = view_layer
+        self.frames = list(frames)
+        self.settings = settings
+        self.progress = progress or (lambda done, total, text: None)
+        self.results: list[FrameResult] = []
+        self.timings = Timings()
+        self.folder = ""
+
+    @property
+    def total_steps(self) -> int:
+        return len(self.frames) * self.settings.samples_per_frame
+
+    def run(self) -> list[FrameResult]:
+        for _ in self.steps():
+            pass
+        return self.results
+
+    def _file_names(self, frame: int) -> list[str]:
+        names = [output.denoised_name(frame), self._final_name(frame)]
+        if self.settings.keep_sample_frames:
+            names.append(output.sample_frame_name(frame))
+        return names
+
+    def _final_name(self, frame: int) -> str:
+        return output.final_name(frame, self.scene.render.file_extension)
+
+    def steps(self) -> Iterator[int]:
+        """Yields the number of sub-renders done so far, after each one."""
+        import bpy
+
+        scene = self.scene
+        if scene.render.engine != "CYCLES":
+            raise RuntimeError("the Affinity Denoiser needs Cycles as the render engine")
+        denoiser = backend.create_denoiser(self.settings.model_path)
+        motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())  # fail early
+        base = output.base_folder(scene, self.settings.output_folder)
+        self.folder = output.choose_run_folder(
+            base, [n for f in self.frames for n in self._file_names(f)]
+        )
+        original_frame = (scene.frame_current, scene.frame_subframe)
+        try:
+            with Overrides() as overrides, passes.shader_aovs(self.view_layer), \
+                    materials.surface_aovs(bpy.data):
+                use_compositing = self._configure(overrides)
+                yield from self._render_frames(denoiser, overrides, use_compositing)
+        finally:
+            engine.session.sink = None
+            engine.session.present = None
+            scene.frame_set(original_frame[0], subframe=original_frame[1])
+        if self.results:
+            first = self.results[0]
+            compositor.update_denoised_node(scene, first.denoised_path, first.frame,
+                                            len(self.results))
+
+    def _configure(self, overrides: Overrides) -> bool:
+        """Sets the scene up for one-sample sub-renders; returns the user's use_compositing."""
+        scene, render, cycles = self.scene, self.scene.render, self.scene.cycles
+        use_compositing = bool(render.use_compositing)
+        passes.enable_passes(overrides, self.view_layer)
+        overrides.set(render, "engine", engine.IDNAME)
+        overrides.set(render, "use_persistent_data", True)
+        overrides.set(render, "use_single_layer", True)
+        overrides.set(render, "use_compositing", False)
+        overrides.set(render, "use_sequencer", False)
+        overrides.set(cycles, "use_denoising", False)
+        overrides.set(cycles, "use_adaptive_sampling", False)
+        if hasattr(cycles, "use_sample_subset"):  # Blender 4.x+: samples = the whole set
+            overrides.set(cycles, "samples", self.settings.samples_per_frame)
+            overrides.set(cycles, "use_sample_subset", True)
+            overrides.set(cycles, "sample_subset_length", 1)
+        else:  # earlier Cycles: render 1 sample starting at sample_offset
+            overrides.set(cycles, "samples", 1)
+        overrides.set(cycles, "sample_offset", 0)
+        # The denoise-render replaces the view layer's sample count, if it has one.
+        overrides.set_if_present(self.view_layer, "samples", 0)
+        self._activate_view_layer(overrides)
+        return use_compositing
+
+    def _activate_view_layer(self, overrides: Overrides) -> None:
+        import bpy
+
+        window = bpy.context.window
+        if window is not None and window.view_layer != self.view_layer:
+            overrides.set(window, "view_layer", self.view_layer)
+
+    def _render_frames(self, denoiser: Any, overrides: Overrides,
+                       use_compositing: bool) -> Iterator[int]:
+        import bpy
+
+        scene, spp = self.scene, self.settings.samples_per_frame
+        previous: tuple[motion.Camera, np.ndarray] | None = None
+        names: dict[str, str] | None = None
+        done = 0
+        for frame_number, frame in enumerate(self.frames):
+            scene.frame_set(frame)
+            camera = motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())
+            ray_start = motion.ray_start_distance(camera)
+            samples = np.empty((camera.height, camera.width, spp, features.FEATURE_COUNT),
+                               np.float32)
+            sums: dict[str, np.ndarray] = {}
+            depth = None
+            for sample in range(spp):
+                self.progress(done, self.total_steps,
+                              f"frame {frame} ({frame_number + 1}/{len(self.frames)}), "
+                              f"sample {sample + 1}/{spp}")
+                captured = self._sub_render(sample)
+                if names is None:
+                    names = passes.resolve(captured)
+                samples[:, :, sample] = features.sample_features(
+                    passes.by_role(captured, names), camera, ray_start)
+                if sample == 0:  # Cycles writes Z for the sample at offset 0 only
+                    depth = captured[names["depth"]][..., 0].copy()
+                for name, image in captured.items():
+                    sums[name] = sums[name] + image if name in sums else image.astype(np.float64)
+                done += 1
+                yield done
+            assert depth is not None
+            motion_vectors, valid = motion.camera_motion(
+                camera, depth, *(previous if previous else (None, None)))
+            previous = (camera, depth)
+            frame_data = features.frame_dict(samples, motion_vectors, valid, camera,
+                                             scene.name, frame, scene.cycles.seed)
+            mean = {name: (total / spp).astype(np.float32) for name, total in sums.items()}
+            self._finish_frame(denoiser, frame, frame_data, mean, overrides, use_compositing)
+
+    def _sub_render(self, sample: int) -> dict[str, np.ndarray]:
+        import bpy
+
+        self.scene.cycles.sample_offset = sample
+        # With persistent data Cycles silently repeats the previous sample without this.
+        self.scene.update_tag()
+        captured: list[dict[str, np.ndarray]] = []
+        engine.session.sink = lambda result: captured.append(passes.read_result(result))
+        start = time.perf_counter()
+        try:
+            bpy.ops.render.render()
+        finally:
+            engine.session.sink = None
+        self.timings.sub_renders.append(time.perf_counter() - start)
+        if not captured:
+            raise Cancelled("the render was cancelled")
+        return captured[0]
+
+    def _finish_frame(self, denoiser: Any, frame: int, frame_data: dict[str, Any],
+                      mean: dict[str, np.ndarray], overrides: Overrides,
+                      use_compositing: bool) -> None:
+        import bpy
+
+        samples = frame_data["samples"]
+        noisy = (samples[..., 0:3] + samples[..., 3:6]).mean(axis=2)
+        if not self.settings.temporal:
+            denoiser.reset()
+        start = time.perf_counter()
+        denoised = np.asarray(denoiser.denoise(frame_data), dtype=np.float32)
+        self.timings.denoise.append(time.perf_counter() - start)
+        if denoised.shape != noisy.shape:
+            raise RuntimeError(f"the denoiser returned shape {denoised.shape}, "
+                               f"expected {noisy.shape}")
+        combined_name = passes.PASS_NAMES["combined"][0]
+        alpha = mean[combined_name][..., 3:4] if combined_name in mean else np.ones_like(noisy[..., :1])
+        rgba = np.concatenate([denoised, alpha], axis=-1)
+
+        start = time.perf_counter()
+        denoised_path = os.path.join(self.folder, output.denoised_name(frame))
+        output.write_float_exr(denoised_path, rgba)
+        sample_frame_path = None
+        if self.settings.keep_sample_frames:
+            sample_frame_path = os.path.join(self.folder, output.sample_frame_name(frame))
+            output.write_atomic(sample_frame_path,
+                                lambda tmp: backend.write_sample_frame(tmp, frame_data))
+        self.timings.write.append(time.perf_counter() - start)
+
+        # Present the denoised frame: Blender composites it and we save the result.
+        start = time.perf_counter()
+        engine.session.present = dict(mean)
+        engine.session.present[combined_name] = rgba
+        self.scene.render.use_compositing = use_compositing
+        try:
+            bpy.ops.render.render()
+        finally:
+            engine.session.present = None
+            self.scene.render.use_compositing = False
+        final_path = os.path.join(self.folder, self._final_name(frame))
+        output.write_render_result(final_path, self.scene)
+        self.timings.present.append(time.perf_counter() - start)
+
+        self.results.append(FrameResult(frame, denoised_path, final_path, sample_frame_path,
+                                        noisy, denoised, dict(getattr(denoiser, "last_report", {}))))

@@ -1,0 +1,85 @@
+"""Tiny Cycles scenes built in code for the Blender tests."""
+
+from __future__ import annotations
+
+import math
+
+import bpy
+
+WIDTH, HEIGHT, FRAMES, SPP = 64, 48, 3, 4
+
+
+def _principled(name: str, **inputs: object) -> bpy.types.Material:
+    material = bpy.data.materials.new(name)
+    if material.node_tree is None:  # Blender < 5 creates the node tree on request
+        material.use_nodes = True
+    bsdf = material.node_tree.nodes["Principled BSDF"]
+    for socket, value in inputs.items():
+        bsdf.inputs[socket.replace("_", " ")].default_value = value
+    return material
+
+
+def _add(primitive: str, material: bpy.types.Material, **kwargs: object) -> bpy.types.Object:
+    getattr(bpy.ops.mesh, primitive)(**kwargs)
+    obj = bpy.context.object
+    obj.data.materials.append(material)
+    return obj
+
+
+def build_scene(width: int = WIDTH, height: int = HEIGHT, frames: int = FRAMES,
+                spp: int = SPP, threads: int = 2) -> bpy.types.Scene:
+    """A floor, a glossy metal sphere, a glass sphere, an emissive cube, a pure emitter and a
+    point light, seen by a camera that moves and turns a little every frame."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    render = scene.render
+    render.engine = "CYCLES"
+    render.resolution_x, render.resolution_y, render.resolution_percentage = width, height, 100
+    render.threads_mode = "FIXED"
+    render.threads = threads
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = spp
+    scene.cycles.use_denoising = False
+    scene.cycles.use_adaptive_sampling = False
+    scene.frame_start, scene.frame_end = 1, frames
+
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if world.node_tree is None:
+        world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs[0].default_value = (0.05, 0.07, 0.1, 1.0)
+
+    _add("primitive_plane_add", _principled("Floor", Base_Color=(0.8, 0.6, 0.4, 1.0),
+                                            Roughness=1.0), size=20)
+    _add("primitive_uv_sphere_add", _principled("Metal", Base_Color=(0.9, 0.9, 0.9, 1.0),
+                                                Metallic=1.0, Roughness=0.2),
+         radius=1.0, location=(-1.5, 0.0, 1.0), segments=16, ring_count=8)
+    _add("primitive_uv_sphere_add", _principled("Glass", Transmission_Weight=1.0,
+                                                Roughness=0.0, IOR=1.5),
+         radius=1.0, location=(1.2, -0.5, 1.0), segments=16, ring_count=8)
+    _add("primitive_cube_add", _principled("Emissive", Emission_Color=(1.0, 0.8, 0.5, 1.0),
+                                           Emission_Strength=5.0),
+         size=0.6, location=(0.0, 2.0, 0.3))
+    emitter = bpy.data.materials.new("PureEmitter")
+    if emitter.node_tree is None:
+        emitter.use_nodes = True
+    tree = emitter.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    emission = tree.nodes.new("ShaderNodeEmission")
+    emission.inputs["Strength"].default_value = 3.0
+    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    _add("primitive_cube_add", emitter, size=0.5, location=(-0.3, -2.5, 0.25))
+
+    bpy.ops.object.light_add(type="POINT", location=(2.0, -2.0, 5.0))
+    bpy.context.object.data.energy = 800.0
+
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    for i in range(frames):
+        camera.location = (0.3 * i, -7.0, 3.0 + 0.1 * i)
+        camera.rotation_euler = (math.radians(70.0), 0.0, math.radians(2.0 * i))
+        camera.keyframe_insert("location", frame=1 + i)
+        camera.keyframe_insert("rotation_euler", frame=1 + i)
+    scene.frame_set(1)
+    return scene
