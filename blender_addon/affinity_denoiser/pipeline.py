@@ -53,6 +53,7 @@ class FrameResult:
     noisy: np.ndarray  # (H, W, 3) mean of the samples' radiance
     denoised: np.ndarray  # (H, W, 3)
     denoiser_report: dict[str, Any]
+    frame_data: dict[str, Any] | None = None  # the core's input, kept when keep_frames is set
 
 
 @dataclass
@@ -89,6 +90,8 @@ class DenoiseRender:
         self.results: list[FrameResult] = []
         self.timings = Timings()
         self.folder = ""
+        #: Keep each frame's per-sample data in its FrameResult (tests, inspection).
+        self.keep_frames = False
 
     @property
     def total_steps(self) -> int:
@@ -269,4 +272,5 @@ class DenoiseRender:
         self.timings.present.append(time.perf_counter() - start)
 
         self.results.append(FrameResult(frame, denoised_path, final_path, sample_frame_path,
-                                        noisy, denoised, dict(getattr(denoiser, "last_report", {}))))
+                                        noisy, denoised, dict(getattr(denoiser, "last_report", {})),
+                                        frame_data if self.keep_frames else None))

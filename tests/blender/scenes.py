@@ -83,3 +83,44 @@ def build_scene(width: int = WIDTH, height: int = HEIGHT, frames: int = FRAMES,
         camera.keyframe_insert("rotation_euler", frame=1 + i)
     scene.frame_set(1)
     return scene
+
+
+def add_exposure_compositor(scene: bpy.types.Scene, exposure: float) -> None:
+    """A compositing graph: Render Layers -> Exposure (x 2^exposure) -> the output."""
+    if hasattr(scene, "compositing_node_group"):  # Blender 5: a node group of the scene
+        tree = bpy.data.node_groups.new("Compositing", "CompositorNodeTree")
+        tree.interface.new_socket(name="Image", in_out="OUTPUT", socket_type="NodeSocketColor")
+        scene.compositing_node_group = tree
+        result = tree.nodes.new("NodeGroupOutput")
+    else:
+        scene.use_nodes = True
+        tree = scene.node_tree
+        tree.nodes.clear()
+        result = tree.nodes.new("CompositorNodeComposite")
+    layers = tree.nodes.new("CompositorNodeRLayers")
+    node = tree.nodes.new("CompositorNodeExposure")
+    node.inputs["Exposure"].default_value = exposure
+    tree.links.new(layers.outputs["Image"], node.inputs["Image"])
+    tree.links.new(node.outputs["Image"], result.inputs[0])
+    scene.render.use_compositing = True
+
+
+def use_float_exr_output(scene: bpy.types.Scene) -> None:
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    settings.color_mode = "RGBA"
+
+
+def read_image(path: str) -> "object":
+    """An image file's pixels as float32 (H, W, 4), top row first, no colour conversion."""
+    import numpy as np
+
+    image = bpy.data.images.load(path)
+    try:
+        image.colorspace_settings.name = "Non-Color"
+        pixels = np.empty(image.size[0] * image.size[1] * 4, np.float32)
+        image.pixels.foreach_get(pixels)
+        return pixels.reshape(image.size[1], image.size[0], 4)[::-1].copy()
+    finally:
+        bpy.data.images.remove(image)

@@ -1,0 +1,231 @@
+"""A denoise-render of 3 frames x 4 samples at 64x48 (glossy, glass, emitters, moving camera),
+checked against plain Cycles renders, the feature schema and the user's data."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import bpy
+import numpy as np
+import pytest
+
+import scenes
+from conftest import CORE_AVAILABLE, capture, material_snapshot
+from affinity_denoiser import compositor, features, pipeline
+
+REFERENCE_SPP = 256
+
+
+def _scene_settings(scene: Any) -> dict[str, Any]:
+    layer = scene.view_layers[0]
+    names = ("use_pass_z", "use_pass_diffuse_direct", "use_pass_diffuse_indirect",
+             "use_pass_diffuse_color", "use_pass_emit", "use_pass_combined")
+    return {
+        "engine": scene.render.engine,
+        "persistent": scene.render.use_persistent_data,
+        "single_layer": scene.render.use_single_layer,
+        "compositing": scene.render.use_compositing,
+        "samples": scene.cycles.samples,
+        "subset": getattr(scene.cycles, "use_sample_subset", None),
+        "offset": scene.cycles.sample_offset,
+        "adaptive": scene.cycles.use_adaptive_sampling,
+        "denoising": scene.cycles.use_denoising,
+        "frame": scene.frame_current,
+        "passes": tuple(getattr(layer, n) for n in names),
+        "denoising_passes": layer.cycles.denoising_store_passes,
+        "aovs": tuple((a.name, a.type) for a in layer.aovs),
+        "images": sorted(i.name for i in bpy.data.images),
+    }
+
+
+@pytest.fixture(scope="module")
+def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    """The denoise-render, plus plain renders of the same frames to compare with."""
+    root = tmp_path_factory.mktemp("pipeline")
+    scene = scenes.build_scene()
+    scenes.add_exposure_compositor(scene, 1.0)
+    scenes.use_float_exr_output(scene)
+    scene.render.filepath = str(root / "render" / "frame_")
+    scene.frame_set(2)
+    before = {"materials": material_snapshot(), "settings": _scene_settings(scene)}
+
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings())
+    job.keep_frames = True
+    job.run()
+    after = {"materials": material_snapshot(), "settings": _scene_settings(scene)}
+    node = compositor.compositing_tree(scene).nodes[compositor.NODE_NAME]
+    after["node"] = {"image": bpy.path.abspath(node.image.filepath), "source": node.image.source,
+                     "frame_start": node.frame_start, "frame_offset": node.frame_offset,
+                     "frame_duration": node.frame_duration}
+
+    plain, reference = {}, {}
+    for frame in job.frames:
+        scene.frame_set(frame)
+        plain[frame] = capture(scene)["Combined"][..., :3]
+
+        def high_spp(s: Any) -> None:
+            s.cycles.samples = REFERENCE_SPP
+            s.cycles.seed = 1  # independent of the 4 samples being judged
+
+        reference[frame] = capture(scene, high_spp)["Combined"][..., :3]
+        scene.cycles.samples, scene.cycles.seed = scenes.SPP, 0
+    return {"job": job, "before": before, "after": after, "plain": plain,
+            "reference": reference, "root": root}
+
+
+def test_sample_mean_equals_a_full_render(run: dict[str, Any]) -> None:
+    for result in run["job"].results:
+        full = run["plain"][result.frame]
+        # Sum of per-sample diffuse + specular over the samples = Cycles' 4-spp Combined.
+        np.testing.assert_allclose(result.noisy, full, rtol=1e-5, atol=1e-5)
+
+
+def test_features_within_schema_ranges(run: dict[str, Any]) -> None:
+    for result in run["job"].results:
+        samples = result.frame_data["samples"]
+        assert samples.shape == (scenes.HEIGHT, scenes.WIDTH, scenes.SPP, 18)
+        assert np.isfinite(samples).all()
+        f = features
+        assert (samples[..., f.DIFFUSE:f.SPECULAR + 3] >= 0).all()
+        normal = samples[..., f.NORMAL:f.NORMAL + 3]
+        length = np.linalg.norm(normal, axis=-1)
+        assert np.all((np.abs(length - 1) < 1e-4) | (length == 0))
+        depth = samples[..., f.DEPTH]
+        assert (depth >= 0).all()
+        albedo = samples[..., f.ALBEDO:f.ALBEDO + 3]
+        assert ((albedo >= 0) & (albedo <= 1)).all()
+        roughness = samples[..., f.ROUGHNESS]
+        assert np.all((roughness == 0) | ((roughness >= 0.02) & (roughness <= 1)))
+        for channel in (f.EMISSIVE, f.METALLIC, f.TRANSMISSIVE, f.SPECULAR_BOUNCE):
+            flag = samples[..., channel]
+            assert np.isin(flag, (0.0, 1.0)).all()
+            assert flag.any(), f"flag channel {channel} is never set in this scene"
+        miss = (length == 0) & (depth == 0)
+        assert miss.any() and (samples[..., f.EMISSIVE][miss] == 1).all()
+        assert (roughness[miss] == 0).all() and (albedo[miss] == 0).all()
+
+
+def test_depth_is_the_path_length_from_the_eye() -> None:
+    """Where the first hit is not specular, the depth from Cycles' denoising depth (measured
+    from the near plane) plus the near plane's distance equals the shader's view distance."""
+    from affinity_denoiser import materials, motion, passes
+
+    scene = scenes.build_scene(frames=1)
+    layer = scene.view_layers[0]
+
+    def one_sample_with_feature_passes(s: Any) -> None:
+        s.cycles.samples = 1
+        layer.use_pass_z = layer.use_pass_emit = True
+        layer.use_pass_diffuse_direct = layer.use_pass_diffuse_indirect = True
+        layer.use_pass_diffuse_color = layer.cycles.denoising_store_passes = True
+
+    with passes.shader_aovs(layer), materials.surface_aovs(bpy.data):
+        captured = capture(scene, one_sample_with_feature_passes)
+    camera = motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())
+    by_role = passes.by_role(captured, passes.resolve(captured))
+    sample = features.sample_features(by_role, camera, motion.ray_start_distance(camera))
+    depth, view_distance = sample[..., features.DEPTH], by_role["aov_distance"][..., 0]
+    direct = (sample[..., features.SPECULAR_BOUNCE] == 0) & (depth > 0)
+    assert direct.mean() > 0.5
+    np.testing.assert_allclose(depth[direct], view_distance[direct], rtol=1e-4)
+    # Through the mirror and the glass the path is longer than the distance to the first hit.
+    bounced = sample[..., features.SPECULAR_BOUNCE] == 1
+    assert (depth[bounced & (depth > 0)] > view_distance[bounced & (depth > 0)]).all()
+
+
+def test_camera_motion_matches_the_vector_pass(run: dict[str, Any]) -> None:
+    from affinity_denoiser import motion
+
+    scene = scenes.build_scene()
+    layer = scene.view_layers[0]
+
+    def vector_pass(s: Any) -> None:
+        s.cycles.samples = 1
+        layer.use_pass_vector = True
+        layer.use_pass_z = True
+
+    cameras, depth, vectors = {}, {}, {}
+    for frame in (1, 2, 3):
+        scene.frame_set(frame)
+        cameras[frame] = motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())
+        passes = capture(scene, vector_pass)
+        depth[frame], vectors[frame] = passes["Depth"][..., 0], passes["Vector"]
+    for frame in (2, 3):
+        ours, valid = motion.camera_motion(cameras[frame], depth[frame],
+                                           cameras[frame - 1], depth[frame - 1])
+        # Blender's Vector pass: (x, y) motion into the previous frame, y up.
+        theirs = np.stack([vectors[frame][..., 0], -vectors[frame][..., 1]], axis=-1)
+        hit = depth[frame] < motion.MISS_DEPTH
+        assert np.abs(ours - theirs)[hit].max() < 1e-3
+        assert np.linalg.norm(theirs, axis=-1)[hit].mean() > 0.5  # the camera really moves
+        assert 0.8 < valid.mean() < 1.0  # some of the image comes into view
+    # The pipeline wrote the same vectors for its frames.
+    pipeline_motion = run["job"].results[1].frame_data["motion"]
+    ours, _ = motion.camera_motion(cameras[2], depth[2], cameras[1], depth[1])
+    np.testing.assert_allclose(pipeline_motion, ours, atol=1e-4)
+    assert not run["job"].results[0].frame_data["valid"].any()
+
+
+def test_denoised_output_is_finite_and_written(run: dict[str, Any]) -> None:
+    for result in run["job"].results:
+        assert np.isfinite(result.denoised).all()
+        written = scenes.read_image(result.denoised_path)
+        np.testing.assert_array_equal(written[..., :3], result.denoised)
+        assert os.path.dirname(result.denoised_path).endswith("affinity_denoised")
+
+
+def test_compositor_output_is_computed_from_the_denoised_frame(run: dict[str, Any]) -> None:
+    for result in run["job"].results:
+        denoised = scenes.read_image(result.denoised_path)
+        final = scenes.read_image(result.final_path)
+        # The user's graph multiplies by 2^1 (Exposure node).
+        np.testing.assert_allclose(final[..., :3], 2.0 * denoised[..., :3], rtol=1e-6)
+
+
+def test_compositor_gets_an_image_node_with_the_denoised_sequence(run: dict[str, Any]) -> None:
+    node = run["after"]["node"]
+    first = run["job"].results[0]
+    assert node["image"] == first.denoised_path and node["source"] == "SEQUENCE"
+    assert (node["frame_start"], node["frame_offset"], node["frame_duration"]) == (1, 0, 3)
+
+
+def test_materials_and_settings_are_restored(run: dict[str, Any]) -> None:
+    assert run["after"]["materials"] == run["before"]["materials"]
+    before, after = dict(run["before"]["settings"]), dict(run["after"]["settings"])
+    # New images: the render result, and the denoised sequence of the compositor's node.
+    first = os.path.basename(run["job"].results[0].denoised_path)
+    assert set(after.pop("images")) - set(before.pop("images")) == {"Render Result", first}
+    assert after == before
+
+
+def _relative_mse(image: np.ndarray, reference: np.ndarray) -> float:
+    return float(np.mean((image - reference) ** 2 / (reference ** 2 + 1e-2)))
+
+
+@pytest.mark.xfail(
+    strict=False,
+    reason="needs the trained model: the built-in model is untrained (or the core is missing "
+    "and the stand-in returns the noisy mean); measured numbers in docs/BLENDER.md",
+)
+def test_denoised_is_closer_to_the_reference_than_the_noisy_mean(run: dict[str, Any]) -> None:
+    for result in run["job"].results:
+        reference = run["reference"][result.frame]
+        noisy = _relative_mse(result.noisy, reference)
+        denoised = _relative_mse(result.denoised, reference)
+        print(f"frame {result.frame}: relMSE noisy {noisy:.4f} denoised {denoised:.4f}")
+        assert denoised < 0.5 * noisy
+
+
+def test_sample_frames_round_trip_through_the_core(run: dict[str, Any], tmp_path: Any) -> None:
+    if not CORE_AVAILABLE:
+        pytest.skip("the affinity core is not importable")
+    import affinity
+
+    frame = run["job"].results[1].frame_data
+    path = tmp_path / "frame_0002.exr"
+    affinity.write_frame(path, frame)
+    back = affinity.read_frame(path)
+    np.testing.assert_array_equal(back["samples"], frame["samples"])
+    np.testing.assert_array_equal(back["motion"], frame["motion"])
+    assert back["info"]["frame_index"] == 2

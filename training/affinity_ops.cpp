@@ -1,0 +1,160 @@
+#include "affinity_ops.h"
+
+#include <ATen/ATen.h>
+
+#include <cstdlib>
+#include <string>
+
+#include "affinity/error.h"
+#include "affinity/features.h"
+
+namespace affinity::train {
+namespace {
+
+// A normalised sum under construction: Σ w v and Σ w.
+struct WeightedSum {
+    at::Tensor numerator;
+    at::Tensor denominator;
+};
+
+// The (H, W) window of a zero-padded tensor shifted by (dy, dx) from its centre.
+at::Tensor shifted(const at::Tensor& padded, std::int64_t pad, std::int64_t dy, std::int64_t dx,
+                   std::int64_t height, std::int64_t width) {
+    return padded.narrow(2, pad + dy, height).narrow(3, pad + dx, width);
+}
+
+at::Tensor squaredDistance(const at::Tensor& a, const at::Tensor& b) { return (a - b).square().sum(1, true); }
+
+// Section 6's taps. Out-of-image taps read zero-padded values and a zero `inside` mask, so they
+// add nothing to either sum (and nothing to any gradient).
+WeightedSum spatialSum(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation) {
+    if (tapSize < 1 || tapSize % 2 == 0) throw Error("affinity filter: tap size " + std::to_string(tapSize) + " is not odd");
+    const std::int64_t height = radiance.size(2), width = radiance.size(3);
+    const std::int64_t radius = (tapSize - 1) / 2;
+    const std::int64_t pad = radius * dilation;
+    const std::vector<std::int64_t> padding{pad, pad, pad, pad};
+    const at::Tensor paddedRadiance = at::constant_pad_nd(radiance, padding, 0);
+    const at::Tensor paddedFeatures = at::constant_pad_nd(kernel.features, padding, 0);
+    const at::Tensor inside = at::constant_pad_nd(at::ones_like(kernel.bandwidth), padding, 0);
+    const at::Tensor negativeA2 = -(kernel.bandwidth * kernel.bandwidth);
+
+    WeightedSum sum{kernel.centre * radiance, kernel.centre};
+    for (std::int64_t i = -radius; i <= radius; ++i) {
+        for (std::int64_t j = -radius; j <= radius; ++j) {
+            const std::int64_t dy = i * dilation, dx = j * dilation;
+            if (i == 0 && j == 0) continue;
+            if (std::abs(dy) >= height || std::abs(dx) >= width) continue;  // wholly outside
+            const at::Tensor neighbour = shifted(paddedFeatures, pad, dy, dx, height, width);
+            const at::Tensor weight = at::exp(negativeA2 * squaredDistance(kernel.features, neighbour)) *
+                                      shifted(inside, pad, dy, dx, height, width);
+            sum.numerator = sum.numerator + weight * shifted(paddedRadiance, pad, dy, dx, height, width);
+            sum.denominator = sum.denominator + weight;
+        }
+    }
+    return sum;
+}
+
+void checkImage(const at::Tensor& tensor, const char* what, std::int64_t channels) {
+    if (tensor.dim() != 4 || (channels > 0 && tensor.size(1) != channels)) {
+        throw Error(std::string("affinity ops: ") + what + " must be [B, " +
+                    (channels > 0 ? std::to_string(channels) : std::string("C")) + ", H, W]");
+    }
+}
+
+}  // namespace
+
+PreparedInputs prepareInputs(const at::Tensor& samples) {
+    if (samples.dim() != 5 || samples.size(2) != kFeatureCount) {
+        throw Error("prepareInputs: samples must be [B, S, 18, H, W]");
+    }
+    const std::int64_t batch = samples.size(0);
+    const std::vector<std::int64_t> perFrame{1, 2, 3, 4};
+
+    // Non-finite and negative radiance reads as 0 everywhere (and is counted).
+    const at::Tensor radiance = samples.narrow(2, channel::kDiffuse, 6);
+    const at::Tensor finite = at::isfinite(radiance);
+    const at::Tensor clean = at::where(finite.logical_and(radiance > 0), radiance, 0.0);
+    const at::Tensor invalidCount = finite.logical_not().logical_or(radiance < 0).sum(perFrame);
+    const at::Tensor noisy = (clean.narrow(2, 0, 3) + clean.narrow(2, 3, 3)).mean(1);
+
+    // depthScale = 1 / mean of the positive finite depths (the core does the same), summed in
+    // double so that large frames keep full float precision.
+    const at::Tensor depth = samples.narrow(2, channel::kDepth, 1);
+    const at::Tensor hit = at::isfinite(depth).logical_and(depth > 0);
+    const at::Tensor depthSum = at::where(hit, depth.to(at::kDouble), 0.0).sum(perFrame);
+    const at::Tensor hitCount = hit.sum(perFrame).to(at::kDouble);
+    const at::Tensor any = hitCount > 0;
+    const at::Tensor scale =
+        at::where(any, hitCount / at::where(any, depthSum, 1.0), 0.0).to(samples.scalar_type()).view({batch, 1, 1, 1, 1});
+
+    at::Tensor networkInput = at::cat({at::log1p(clean), samples.narrow(2, channel::kNormal, 3), depth * scale,
+                                       samples.narrow(2, channel::kAlbedo, kFeatureCount - channel::kAlbedo)},
+                                      2);
+    return {networkInput, noisy, invalidCount};
+}
+
+at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
+    checkImage(previous, "the warped buffer", 0);
+    checkImage(motion, "motion", 2);
+    const std::int64_t batch = previous.size(0), channels = previous.size(1);
+    const std::int64_t height = previous.size(2), width = previous.size(3);
+    const at::Tensor clean = at::nan_to_num(motion, 0.0);
+    const at::Tensor xs = at::arange(width, clean.options()).view({1, 1, width});
+    const at::Tensor ys = at::arange(height, clean.options()).view({1, height, 1});
+    // Clamping the position is the same as clamping both bilinear taps to the border.
+    const at::Tensor px = (clean.select(1, 0) + xs).clamp(0, double(width - 1));
+    const at::Tensor py = (clean.select(1, 1) + ys).clamp(0, double(height - 1));
+    const at::Tensor x0f = px.floor().detach(), y0f = py.floor().detach();
+    const at::Tensor fx = (px - x0f).unsqueeze(1), fy = (py - y0f).unsqueeze(1);
+    const at::Tensor x0 = x0f.to(at::kLong), y0 = y0f.to(at::kLong);
+    const at::Tensor x1 = (x0 + 1).clamp_max(width - 1), y1 = (y0 + 1).clamp_max(height - 1);
+
+    const at::Tensor flat = previous.reshape({batch, channels, height * width});
+    auto tap = [&](const at::Tensor& y, const at::Tensor& x) {
+        const at::Tensor index = (y * width + x).view({batch, 1, height * width}).expand({batch, channels, height * width});
+        return flat.gather(2, index).view({batch, channels, height, width});
+    };
+    const at::Tensor top = tap(y0, x0) * (1 - fx) + tap(y0, x1) * fx;
+    const at::Tensor bottom = tap(y1, x0) * (1 - fx) + tap(y1, x1) * fx;
+    return top * (1 - fy) + bottom * fy;
+}
+
+at::Tensor maxPool2x2(const at::Tensor& input) { return at::max_pool2d(input, {2, 2}, {2, 2}, {0, 0}, {1, 1}, true); }
+
+at::Tensor upsampleNearest(const at::Tensor& input, std::int64_t height, std::int64_t width) {
+    const at::TensorOptions index = input.options().dtype(at::kLong);
+    const at::Tensor rows = at::div(at::arange(height, index), 2, "floor");
+    const at::Tensor cols = at::div(at::arange(width, index), 2, "floor");
+    return input.index_select(2, rows).index_select(3, cols);
+}
+
+at::Tensor affinityFilter(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation) {
+    checkImage(radiance, "radiance", 3);
+    const WeightedSum sum = spatialSum(radiance, kernel, tapSize, dilation);
+    return sum.numerator / (sum.denominator + kAffinityEpsilon);
+}
+
+at::Tensor affinityFilterTemporal(const at::Tensor& radiance, const KernelParams& kernel, int tapSize,
+                                  int dilation, const TemporalTaps& temporal) {
+    checkImage(radiance, "radiance", 3);
+    checkImage(temporal.output, "the warped output", 3);
+    WeightedSum sum = spatialSum(radiance, kernel, tapSize, dilation);
+    const std::int64_t height = radiance.size(2), width = radiance.size(3);
+    const std::vector<std::int64_t> padding{1, 1, 1, 1};
+    const at::Tensor paddedOutput = at::constant_pad_nd(temporal.output, padding, 0);
+    const at::Tensor paddedFeatures = at::constant_pad_nd(temporal.features, padding, 0);
+    const at::Tensor paddedValid = at::constant_pad_nd(temporal.valid, padding, 0);  // outside = invalid
+    const at::Tensor negativeB2 = -(temporal.bandwidth * temporal.bandwidth);
+    for (std::int64_t dy = -1; dy <= 1; ++dy) {
+        for (std::int64_t dx = -1; dx <= 1; ++dx) {
+            const at::Tensor neighbour = shifted(paddedFeatures, 1, dy, dx, height, width);
+            const at::Tensor weight = shifted(paddedValid, 1, dy, dx, height, width) *
+                                      at::exp(negativeB2 * squaredDistance(kernel.features, neighbour));
+            sum.numerator = sum.numerator + weight * shifted(paddedOutput, 1, dy, dx, height, width);
+            sum.denominator = sum.denominator + weight;
+        }
+    }
+    return sum.numerator / (sum.denominator + kAffinityEpsilon);
+}
+
+}  // namespace affinity::train

@@ -1,0 +1,65 @@
+#pragma once
+// The size of a denoising network (docs/MODEL.md): embedding widths, U-Net levels, and the
+// affinity kernel settings. Plain C++ (no torch), so tools can describe models cheaply.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace affinity {
+class Weights;
+}
+
+namespace affinity::train {
+
+// A run of 3x3 convolutions (one U-Net level or the bottleneck): the output width of each.
+struct ConvStackSpec {
+    std::vector<int> widths;
+    int outWidth() const { return widths.empty() ? 0 : widths.back(); }
+};
+
+struct ModelConfig {
+    std::vector<int> embedWidths;         // output width of each embedding layer; the last is E
+    std::vector<ConvStackSpec> encoder;   // level 0 (full resolution) first
+    ConvStackSpec bottleneck;
+    std::vector<ConvStackSpec> decoder;   // decoder[l] runs at level l; as many as encoder levels
+    int kernels = 3;            // K: dilated affinity kernels, the last one also temporal
+    int affinityFeatures = 8;   // F: affinity features per kernel
+    int kernelSize = 5;         // T: spatial taps per side (odd)
+
+    int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
+    // P = K (F + 2) + 2: per-kernel features, bandwidth, centre weight; temporal bandwidth, lambda.
+    int headChannels() const { return kernels * (affinityFeatures + 2) + 2; }
+};
+
+// Throws affinity::Error naming the first inconsistency (sizes < 1, even T, level counts).
+void validateConfig(const ModelConfig& config);
+
+// Named sizes: "tiny" (tests), "small" (the default for training on this machine's CPU),
+// "paper" (widths like the paper's third-party reimplementations).
+std::vector<std::string> presetNames();
+ModelConfig presetConfig(const std::string& name);  // throws affinity::Error for unknown names
+
+// Reads the structure back from a weights file's tensors (docs/MODEL.md sections 4 and 8) and
+// checks every shape against it; throws affinity::Error naming the source and the tensor.
+ModelConfig configFromWeights(const Weights& weights);
+
+// The float tensors of a model as docs/MODEL.md names them, with their shapes, in the order
+// the training code registers them.
+struct TensorSpec {
+    std::string name;
+    std::vector<std::int64_t> shape;
+};
+std::vector<TensorSpec> parameterSpecs(const ModelConfig& config);
+std::int64_t parameterCount(const ModelConfig& config);
+
+// Approximate arithmetic per output pixel (a multiply-add counts 2, an exp 1), ignoring the
+// rounding up of odd sizes at coarse levels.
+struct FlopCount {
+    double embeddingPerSample = 0;  // the MLP on one sample
+    double unetPerPixel = 0;        // U-Net including the head, per full-resolution pixel
+    double filterPerPixel = 0;      // warps, accumulation and every affinity kernel
+    double perPixel(int spp) const { return embeddingPerSample * spp + unetPerPixel + filterPerPixel; }
+};
+FlopCount flopCount(const ModelConfig& config);
+
+}  // namespace affinity::train

@@ -1,0 +1,109 @@
+// affinity_model_tool: creates randomly initialised weights files and describes weights files.
+//   affinity_model_tool init --preset NAME --seed N --out FILE.affw
+//   affinity_model_tool describe FILE.affw
+#include <cstdint>
+#include <cstdio>
+#include <iostream>
+#include <string>
+#include <vector>
+
+#include "affinity/error.h"
+#include "affinity/weights.h"
+#include "model_config.h"
+#include "torch_reference.h"
+
+namespace affinity::train {
+namespace {
+
+constexpr const char* kUsage =
+    "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw\n"
+    "       affinity_model_tool describe FILE.affw\n";
+
+std::string joined(const std::vector<int>& widths) {
+    std::string text;
+    for (int width : widths) text += (text.empty() ? "" : "-") + std::to_string(width);
+    return text;
+}
+
+int runInit(const std::vector<std::string>& args) {
+    std::string preset = "small", out;
+    std::uint64_t seed = 0;
+    for (std::size_t i = 0; i < args.size(); ++i) {
+        const std::string& flag = args[i];
+        if (i + 1 >= args.size()) throw Error("init: " + flag + " needs a value");
+        const std::string& value = args[++i];
+        if (flag == "--preset") {
+            preset = value;
+        } else if (flag == "--seed") {
+            std::size_t used = 0;
+            try {
+                seed = std::stoull(value, &used);
+            } catch (const std::exception&) {
+                used = 0;
+            }
+            if (used != value.size() || value.empty() || value[0] == '-') {
+                throw Error("init: --seed '" + value + "' is not a non-negative integer");
+            }
+        } else if (flag == "--out") {
+            out = value;
+        } else {
+            throw Error("init: unknown option " + flag);
+        }
+    }
+    if (out.empty()) throw Error("init: --out FILE is required");
+    const ModelConfig config = presetConfig(preset);
+    writeInitialModel(config, seed, out);
+    std::cout << "wrote " << out << ": preset " << preset << ", seed " << seed << ", "
+              << parameterCount(config) << " parameters\n";
+    return 0;
+}
+
+int runDescribe(const std::vector<std::string>& args) {
+    if (args.size() != 1) throw Error("describe: expected exactly one weights file");
+    const Weights weights = Weights::fromFile(args[0]);
+    const ModelConfig config = configFromWeights(weights);
+    std::cout << args[0] << "\n";
+    std::cout << "  embedding      18-" << joined(config.embedWidths) << " (E = " << config.embeddingChannels()
+              << ")\n";
+    for (std::size_t l = 0; l < config.encoder.size(); ++l) {
+        std::cout << "  level " << l << "        encoder " << joined(config.encoder[l].widths) << ", decoder "
+                  << joined(config.decoder[l].widths) << "\n";
+    }
+    std::cout << "  bottleneck     " << joined(config.bottleneck.widths) << "\n";
+    std::cout << "  kernels        K = " << config.kernels << ", F = " << config.affinityFeatures
+              << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
+    std::cout << "  parameters     " << parameterCount(config) << "\n";
+    const FlopCount flops = flopCount(config);
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "  FLOPs / pixel  embedding %.0f per sample, U-Net %.0f, filters %.0f\n", flops.embeddingPerSample,
+                  flops.unetPerPixel, flops.filterPerPixel);
+    std::cout << line;
+    for (int spp : {1, 2, 4, 8}) {
+        std::snprintf(line, sizeof line, "                 total at %d spp: %.0f (%.3f GFLOP per 1920x1080 frame)\n",
+                      spp, flops.perPixel(spp), flops.perPixel(spp) * 1920.0 * 1080.0 * 1e-9);
+        std::cout << line;
+    }
+    return 0;
+}
+
+}  // namespace
+}  // namespace affinity::train
+
+int main(int argc, char** argv) {
+    const std::vector<std::string> args(argv + 1, argv + argc);
+    if (args.empty() || args[0] == "--help" || args[0] == "-h") {
+        std::cout << affinity::train::kUsage;
+        return args.empty() ? 2 : 0;
+    }
+    const std::vector<std::string> rest(args.begin() + 1, args.end());
+    try {
+        if (args[0] == "init") return affinity::train::runInit(rest);
+        if (args[0] == "describe") return affinity::train::runDescribe(rest);
+        std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
+        return 2;
+    } catch (const affinity::Error& error) {
+        std::cerr << "affinity_model_tool: " << error.what() << "\n";
+        return 1;
+    }
+}
