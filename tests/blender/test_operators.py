@@ -1,0 +1,70 @@
+"""The operators as a batch user calls them (``blender -b ... --python-expr``), and the panel."""
+
+from __future__ import annotations
+
+import os
+from typing import Any
+
+import bpy
+import pytest
+
+import scenes
+from conftest import CORE_AVAILABLE
+from affinity_denoiser import backend
+
+
+def _scene(tmp_path: Any) -> Any:
+    scene = scenes.build_scene(width=32, height=24, frames=2, spp=2)
+    scene.render.filepath = str(tmp_path / "out" / "frame_")
+    settings = scene.affinity_denoiser
+    settings.enabled = True
+    settings.samples_per_frame = 2
+    return scene
+
+
+def test_render_animation_operator(tmp_path: Any) -> None:
+    _scene(tmp_path)
+    assert bpy.ops.affinity_denoiser.render_animation() == {"FINISHED"}
+    assert sorted(os.listdir(tmp_path / "out" / "affinity_denoised")) == [
+        "denoised_0001.exr", "denoised_0002.exr", "final_0001.png", "final_0002.png"]
+
+
+def test_render_frame_operator_without_temporal_history(tmp_path: Any) -> None:
+    scene = _scene(tmp_path)
+    scene.affinity_denoiser.temporal = False
+    scene.frame_set(2)
+    assert bpy.ops.affinity_denoiser.render_frame() == {"FINISHED"}
+    assert sorted(os.listdir(tmp_path / "out" / "affinity_denoised")) == [
+        "denoised_0002.exr", "final_0002.png"]
+
+
+def test_errors_are_reported_with_the_core_message(tmp_path: Any) -> None:
+    scene = _scene(tmp_path)
+    scene.affinity_denoiser.model_path = str(tmp_path / "missing_model.affw")
+    previous = backend._factory
+    backend.set_denoiser_factory(None)  # the real core, or its absence
+    try:
+        with pytest.raises(RuntimeError) as failure:
+            bpy.ops.affinity_denoiser.render_frame()
+    finally:
+        backend.set_denoiser_factory(previous)
+    message = str(failure.value)
+    assert "missing_model.affw" in message if CORE_AVAILABLE else "affinity core" in message
+    assert not os.path.exists(tmp_path / "out")
+
+
+def test_operators_need_cycles(tmp_path: Any) -> None:
+    scene = _scene(tmp_path)
+    scene.render.engine = "BLENDER_WORKBENCH"
+    assert not bpy.ops.affinity_denoiser.render_frame.poll()
+    scene.render.engine = "CYCLES"
+    assert bpy.ops.affinity_denoiser.render_frame.poll()
+
+
+def test_panel_and_settings_are_registered() -> None:
+    assert hasattr(bpy.types, "AFFINITY_DENOISER_PT_render")
+    settings = scenes.build_scene(frames=1).affinity_denoiser
+    assert (settings.samples_per_frame, settings.temporal, settings.model_path,
+            settings.output_folder) == (4, True, "", "")
+    settings.samples_per_frame = 99
+    assert settings.samples_per_frame == 8
