@@ -33,36 +33,69 @@ struct BlockArgs {
     bool leaky;
 };
 
+// acc[m] += sum over j < count of in[m * stride + j] * w[j] for M pixels: the innermost loop,
+// 2 x M FMAs per weight vector pair, every operand in a register or one load away.
+template <int M, int N>
+inline void accumulate(Float8 (&acc)[M][N], const float* in, std::size_t stride, int count, const float* w) {
+    // One pointer per pixel, indexed by j: base + index addressing, no address arithmetic.
+    const float* pixel[M];
+#pragma GCC unroll 16
+    for (int m = 0; m < M; ++m) pixel[m] = in + std::size_t(m) * stride;
+#pragma GCC unroll 2
+    for (int j = 0; j < count; ++j) {
+        Float8 wv[N];
+#pragma GCC unroll 16
+        for (int n = 0; n < N; ++n) wv[n] = Float8::load(w + std::size_t(j) * (N * kLanes) + n * kLanes);
+#pragma GCC unroll 16
+        for (int m = 0; m < M; ++m) {
+            const Float8 xv = Float8::broadcast(pixel[m] + j);
+#pragma GCC unroll 16
+            for (int n = 0; n < N; ++n) acc[m][n] = fma(xv, wv[n], acc[m][n]);
+        }
+    }
+}
+
 // M consecutive output pixels starting at column x, all of whose taps in [kxBegin, kxEnd]
 // exist; out points at the first pixel's first channel of this block.
 template <int M, int N>
 void convBlock(const BlockArgs& a, int x, float* out) {
     Float8 acc[M][N];
+#pragma GCC unroll 16
     for (int n = 0; n < N; ++n) {
         const Float8 b = Float8::load(a.bias + n * kLanes);
+#pragma GCC unroll 16
         for (int m = 0; m < M; ++m) acc[m][n] = b;
     }
-    for (int ky = a.kyBegin; ky <= a.kyEnd; ++ky) {
-        for (int kx = a.kxBegin; kx <= a.kxEnd; ++kx) {
-            const float* w = a.weights + std::size_t((ky + a.radius) * a.size + kx + a.radius) * a.tapStride;
-            for (int s = 0; s < a.sourceCount; ++s) {
-                const int channels = a.sources[s].channels;
-                const float* in = a.sources[s].data + (std::size_t(a.y + ky) * a.width + std::size_t(x + kx)) * channels;
-                for (int c = 0; c < channels; ++c) {
-                    Float8 wv[N];
-                    for (int n = 0; n < N; ++n) wv[n] = Float8::load(w + n * kLanes);
-                    for (int m = 0; m < M; ++m) {
-                        const Float8 xv = Float8::broadcast(in + std::size_t(m) * channels + c);
-                        for (int n = 0; n < N; ++n) acc[m][n] = fma(xv, wv[n], acc[m][n]);
-                    }
-                    w += N * kLanes;
+    const int r = a.radius;
+    if (a.sourceCount == 1 && a.kxBegin == -r && a.kxEnd == r) {
+        // One source and a full row of taps: for a given ky the (kx, channel) pairs are
+        // contiguous in both the input row and the packed weights, so the taps of a row run
+        // as one loop. Same accumulation order as tap by tap.
+        const int channels = a.sources[0].channels;
+        for (int ky = a.kyBegin; ky <= a.kyEnd; ++ky) {
+            const float* w = a.weights + std::size_t((ky + r) * a.size) * a.tapStride;
+            const float* in = a.sources[0].data + (std::size_t(a.y + ky) * a.width + std::size_t(x - r)) * channels;
+            accumulate<M, N>(acc, in, std::size_t(channels), a.size * channels, w);
+        }
+    } else {
+        for (int ky = a.kyBegin; ky <= a.kyEnd; ++ky) {
+            for (int kx = a.kxBegin; kx <= a.kxEnd; ++kx) {
+                const float* w = a.weights + std::size_t((ky + r) * a.size + kx + r) * a.tapStride;
+                for (int s = 0; s < a.sourceCount; ++s) {
+                    const int channels = a.sources[s].channels;
+                    const float* in =
+                        a.sources[s].data + (std::size_t(a.y + ky) * a.width + std::size_t(x + kx)) * channels;
+                    accumulate<M, N>(acc, in, std::size_t(channels), channels, w);
+                    w += std::size_t(channels) * (N * kLanes);
                 }
             }
         }
     }
     const Float8 slope = Float8::broadcast(kLeakySlope);
+#pragma GCC unroll 16
     for (int m = 0; m < M; ++m) {
         float* o = out + std::size_t(m) * a.outStride;
+#pragma GCC unroll 16
         for (int n = 0; n < N; ++n) {
             Float8 v = acc[m][n];
             if (a.leaky) v = max(v, v * slope);

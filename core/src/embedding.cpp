@@ -1,6 +1,7 @@
 #include "embedding.h"
 
 #include <algorithm>
+#include <cstring>
 #include <string>
 
 #include "affinity/error.h"
@@ -14,30 +15,32 @@ namespace {
 // Samples per work item: the item's activations (two buffers of this many rows) stay in L1.
 constexpr int kChunkSamples = 96;
 constexpr int kRadianceChannels = 6;  // diffuse and specular, in front of the other features
-constexpr int kOtherChannels = kFeatureCount - kRadianceChannels;
 static_assert(channel::kDiffuse == 0 && channel::kSpecular == 3, "radiance leads the sample");
 
-// The input transform of MODEL.md section 1 for `count` consecutive samples, split into the
-// radiance part ([count][6], log1p applied) and the rest ([count][12]) so the log1p loop runs
-// over contiguous floats. Returns how many radiance values were non-finite or negative.
-long long transformSamples(const float* samples, int count, float depthScale, float* radiance, float* other) {
-    long long bad = 0;
-    for (int s = 0; s < count; ++s) {
-        const float* in = samples + std::size_t(s) * kFeatureCount;
-        for (int k = 0; k < kRadianceChannels; ++k) {
-            const float v = in[k];
-            // False for NaN, negative values and +Inf (-Inf is negative).
-            const bool ok = v >= 0.0f && v <= 3.40282347e38f;
-            bad += ok ? 0 : 1;
-            radiance[s * kRadianceChannels + k] = ok ? v : 0.0f;
-        }
-        float* o = other + std::size_t(s) * kOtherChannels;
-        for (int k = 0; k < kOtherChannels; ++k) o[k] = in[kRadianceChannels + k];
-        o[channel::kDepth - kRadianceChannels] *= depthScale;
-    }
+// The input transform of MODEL.md section 1 for `count` consecutive samples into `input`
+// ([count][18]). The radiance goes through a contiguous scratch buffer ([count][6]) so the
+// sanitising and log1p loop vectorises. Returns how many radiance values were non-finite or
+// negative.
+long long transformSamples(const float* samples, int count, float depthScale, float* input, float* radiance) {
+    std::memcpy(input, samples, std::size_t(count) * kFeatureCount * sizeof(float));
+    for (int s = 0; s < count; ++s)
+        std::memcpy(radiance + std::size_t(s) * kRadianceChannels, input + std::size_t(s) * kFeatureCount,
+                    kRadianceChannels * sizeof(float));
     const int n = count * kRadianceChannels;
-#pragma omp simd
-    for (int i = 0; i < n; ++i) radiance[i] = log1pNonNegative(radiance[i]);
+    int bad = 0;
+#pragma omp simd reduction(+ : bad)
+    for (int i = 0; i < n; ++i) {
+        const float v = radiance[i];
+        // False for NaN, negative values and +Inf (-Inf is negative).
+        const bool ok = v >= 0.0f && v <= 3.40282347e38f;
+        bad += ok ? 0 : 1;
+        radiance[i] = log1pNonNegative(ok ? v : 0.0f);
+    }
+    for (int s = 0; s < count; ++s) {
+        float* f = input + std::size_t(s) * kFeatureCount;
+        std::memcpy(f, radiance + std::size_t(s) * kRadianceChannels, kRadianceChannels * sizeof(float));
+        f[channel::kDepth] *= depthScale;
+    }
     return bad;
 }
 
@@ -89,7 +92,7 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
 #pragma omp parallel reduction(+ : bad) if (pixels * spp >= 4096)
     {
         AlignedVector<float> radiance(std::size_t(chunkSamples) * kRadianceChannels);
-        AlignedVector<float> other(std::size_t(chunkSamples) * kOtherChannels);
+        AlignedVector<float> input(std::size_t(chunkSamples) * kFeatureCount);
         AlignedVector<float> ping(std::size_t(chunkSamples) * widest_);
         AlignedVector<float> pong(std::size_t(chunkSamples) * widest_);
         AlignedVector<float> mean(std::size_t(chunkPixels) * std::max(meanChannels, kFeatureCount));
@@ -99,37 +102,31 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
             const long long p0 = chunk * chunkPixels;
             const int count = int(std::min<long long>(chunkPixels, pixels - p0));
             const int n = count * spp;
-            bad += transformSamples(samples + std::size_t(p0) * spp * kFeatureCount, n, depthScale, radiance.data(),
-                                    other.data());
+            bad += transformSamples(samples + std::size_t(p0) * spp * kFeatureCount, n, depthScale, input.data(),
+                                    radiance.data());
 
-            // Hidden layers per sample; `sources` is what feeds the next layer.
-            ConvSource sources[2] = {{radiance.data(), kRadianceChannels}, {other.data(), kOtherChannels}};
-            int sourceCount = 2;
+            // Hidden layers per sample; `source` is what feeds the next layer.
+            ConvSource source{input.data(), kFeatureCount};
             float* next = ping.data();
             for (std::size_t l = 0; l + 1 < layerCount; ++l) {
-                convolveRow(layers_[l], sources, sourceCount, 1, n, 0, 0, n, Activation::LeakyRelu, next);
-                sources[0] = {next, layers_[l].outChannels()};
-                sourceCount = 1;
+                convolveRow(layers_[l], &source, 1, 1, n, 0, 0, n, Activation::LeakyRelu, next);
+                source = {next, layers_[l].outChannels()};
                 next = next == ping.data() ? pong.data() : ping.data();
             }
 
-            // Mean over each pixel's samples, in sample order, of every source channel.
-            int offset = 0;
-            for (int i = 0; i < sourceCount; ++i) {
-                const int channels = sources[i].channels;
-                for (int p = 0; p < count; ++p) {
-                    float* m = mean.data() + std::size_t(p) * meanChannels + offset;
-                    const float* h = sources[i].data + std::size_t(p) * spp * channels;
-                    for (int c = 0; c < channels; ++c) m[c] = h[c];
-                    for (int s = 1; s < spp; ++s) {
-                        const float* hs = h + std::size_t(s) * channels;
+            // Mean over each pixel's samples, in sample order.
+            const int channels = source.channels;
+            for (int p = 0; p < count; ++p) {
+                float* m = mean.data() + std::size_t(p) * channels;
+                const float* h = source.data + std::size_t(p) * spp * channels;
+                std::memcpy(m, h, std::size_t(channels) * sizeof(float));
+                for (int s = 1; s < spp; ++s) {
+                    const float* hs = h + std::size_t(s) * channels;
 #pragma omp simd
-                        for (int c = 0; c < channels; ++c) m[c] += hs[c];
-                    }
-#pragma omp simd
-                    for (int c = 0; c < channels; ++c) m[c] *= inverseSpp;
+                    for (int c = 0; c < channels; ++c) m[c] += hs[c];
                 }
-                offset += channels;
+#pragma omp simd
+                for (int c = 0; c < channels; ++c) m[c] *= inverseSpp;
             }
 
             const ConvSource meanSource{mean.data(), meanChannels};
