@@ -58,7 +58,9 @@ class FrameResult:
 
 @dataclass
 class Timings:
-    sub_renders: list[float] = field(default_factory=list)
+    sub_renders: list[float] = field(default_factory=list)  # including reading the passes
+    read_passes: list[float] = field(default_factory=list)
+    features: list[float] = field(default_factory=list)
     denoise: list[float] = field(default_factory=list)
     present: list[float] = field(default_factory=list)
     write: list[float] = field(default_factory=list)
@@ -193,10 +195,12 @@ class DenoiseRender:
                               f"frame {frame} ({frame_number + 1}/{len(self.frames)}), "
                               f"sample {sample + 1}/{spp}")
                 captured = self._sub_render(sample)
+                start = time.perf_counter()
                 if names is None:
                     names = passes.resolve(captured)
                 samples[:, :, sample] = features.sample_features(
                     passes.by_role(captured, names), camera, ray_start)
+                self.timings.features.append(time.perf_counter() - start)
                 if sample == 0:  # Cycles writes Z for the sample at offset 0 only
                     depth = captured[names["depth"]][..., 0].copy()
                 for name, image in captured.items():
@@ -219,7 +223,13 @@ class DenoiseRender:
         # With persistent data Cycles silently repeats the previous sample without this.
         self.scene.update_tag()
         captured: list[dict[str, np.ndarray]] = []
-        engine.session.sink = lambda result: captured.append(passes.read_result(result))
+
+        def sink(result: Any) -> None:
+            start = time.perf_counter()
+            captured.append(passes.read_result(result))
+            self.timings.read_passes.append(time.perf_counter() - start)
+
+        engine.session.sink = sink
         start = time.perf_counter()
         try:
             bpy.ops.render.render()
