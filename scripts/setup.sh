@@ -29,6 +29,11 @@ if [ ! -x .venv/bin/python ]; then
   "$python" -m venv .venv
 fi
 .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.txt
+# bpy (Blender as a Python module, ~500 MB) for the Blender extension's tests, in its own venv.
+if [ ! -x .venv-blender/bin/python ]; then
+  "$python" -m venv .venv-blender
+fi
+.venv-blender/bin/python -m pip install -q --disable-pip-version-check -r requirements-blender.txt
 
 build_dir=${AFFINITY_BUILD_DIR:-build}
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release \

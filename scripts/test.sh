@@ -13,6 +13,10 @@ ctest --test-dir build --output-on-failure -j "$jobs"
 echo "== Python tests"
 PYTHONPATH="$root/build/python" AFFINITY_BUILD_DIR="$root/build" .venv/bin/python -m pytest -q tests/python
 
+echo "== Blender extension tests (bpy, headless)"
+PYTHONPATH="$root/build/python:$root/blender_addon" .venv-blender/bin/python -m pytest -q -W error \
+  tests/blender
+
 echo "== C++ tests under AddressSanitizer + UndefinedBehaviorSanitizer"
 cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAFFINITY_SANITIZE=ON \
   -DAFFINITY_BUILD_PYTHON=OFF >/dev/null
