@@ -27,8 +27,11 @@ class SequenceDenoiser(Protocol):
 _factory: Callable[[str], SequenceDenoiser] | None = None
 
 
-def load_core() -> Any:
-    """The ``affinity`` module, or CoreMissing with the reason and what to do."""
+def load_core(need_denoiser: bool = True) -> Any:
+    """The ``affinity`` module, or CoreMissing with the reason and what to do.
+
+    ``need_denoiser=False`` accepts a core that can only read and write frame files.
+    """
     try:
         import affinity
     except ImportError as exc:
@@ -37,9 +40,9 @@ def load_core() -> Any:
             f"{exc}. Build it (cmake --build build --target _core) and put build/python on "
             "PYTHONPATH, or install the extension package that bundles its wheel."
         ) from exc
-    if not hasattr(affinity, "Denoiser"):
+    if need_denoiser and not hasattr(affinity, "Denoiser"):
         raise CoreMissing(
-            f"the affinity module at {getattr(affinity, '__file__', '?')} has no Denoiser "
+            f"the affinity core at {getattr(affinity, '__file__', '?')} has no Denoiser "
             "(too old a build)"
         )
     return affinity
@@ -85,7 +88,7 @@ def error_types() -> tuple[type[BaseException], ...]:
 
 def write_sample_frame(path: str, frame: dict[str, Any]) -> None:
     """Writes the per-sample frame file (docs/FRAME_FILES.md) through the core, atomically."""
-    load_core().write_frame(path, frame)
+    load_core(need_denoiser=False).write_frame(path, frame)
 
 
 class MeanDenoiser:

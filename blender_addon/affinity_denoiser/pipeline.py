@@ -122,7 +122,7 @@ class DenoiseRender:
             raise RuntimeError("the Affinity Denoiser needs Cycles as the render engine")
         denoiser = backend.create_denoiser(self.settings.model_path)
         if self.settings.keep_sample_frames:
-            backend.load_core()  # frame files are written by the core: fail before rendering
+            backend.load_core(need_denoiser=False)  # the core writes frame files: fail early
         motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())  # fail early
         base = output.base_folder(scene, self.settings.output_folder)
         self.folder = output.choose_run_folder(

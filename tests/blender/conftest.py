@@ -15,10 +15,11 @@ import numpy as np
 import pytest
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+# Appended, so that PYTHONPATH (e.g. another build of the core) comes first.
 for path in (os.path.join(ROOT, "blender_addon"), os.path.join(ROOT, "build", "python"),
              os.path.dirname(os.path.abspath(__file__))):
     if path not in sys.path:
-        sys.path.insert(0, path)
+        sys.path.append(path)
 
 import bpy  # noqa: E402
 
@@ -35,8 +36,19 @@ def _core_problem() -> str:
     return ""
 
 
+def _core_io_available() -> bool:
+    try:
+        backend.load_core(need_denoiser=False)
+    except backend.CoreMissing:
+        return False
+    return True
+
+
 CORE_PROBLEM = _core_problem()
+#: The core's Denoiser works (otherwise the pipeline tests use the stand-in).
 CORE_AVAILABLE = not CORE_PROBLEM
+#: The core can at least read and write frame files.
+CORE_IO_AVAILABLE = _core_io_available()
 
 
 def pytest_report_header(config: Any) -> str:

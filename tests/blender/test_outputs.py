@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import scenes
-from conftest import CORE_AVAILABLE, material_snapshot
+from conftest import CORE_IO_AVAILABLE, material_snapshot
 from affinity_denoiser import backend, engine, output, pipeline
 
 
@@ -64,7 +64,7 @@ def test_existing_files_are_never_overwritten(tmp_path: Any) -> None:
 
 def test_a_chosen_output_folder_and_sample_frames(tmp_path: Any) -> None:
     scene = _scene(tmp_path)
-    if not CORE_AVAILABLE:
+    if not CORE_IO_AVAILABLE:
         pytest.skip("writing sample frames needs the affinity core")
     job = _job(scene, [1, 2], output_folder=str(tmp_path / "chosen"), keep_sample_frames=True)
     job.run()

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 import scenes
-from conftest import CORE_AVAILABLE, capture, material_snapshot
+from conftest import CORE_IO_AVAILABLE, capture, material_snapshot
 from affinity_denoiser import compositor, features, pipeline
 
 REFERENCE_SPP = 256
@@ -218,7 +218,7 @@ def test_denoised_is_closer_to_the_reference_than_the_noisy_mean(run: dict[str, 
 
 
 def test_sample_frames_round_trip_through_the_core(run: dict[str, Any], tmp_path: Any) -> None:
-    if not CORE_AVAILABLE:
+    if not CORE_IO_AVAILABLE:
         pytest.skip("the affinity core is not importable")
     import affinity
 
