@@ -2,8 +2,9 @@
 add_library(affinity_options INTERFACE)
 target_compile_options(affinity_options INTERFACE
   -Wall -Wextra -Wpedantic -Wshadow -Wconversion -Wno-sign-conversion
-  # GCC 12 reports false -Wrestrict positives inside std::string concatenation at -O3.
-  -Wno-restrict
+  # GCC 12 reports false -Wrestrict positives inside std::string concatenation at -O3
+  # (clang has no such warning and rejects the flag).
+  $<$<CXX_COMPILER_ID:GNU>:-Wno-restrict>
   -march=${AFFINITY_ARCH}
   # Without these the float loops do not vectorise (FACTS.md); we never rely on errno or traps.
   -fno-math-errno -fno-trapping-math)

@@ -25,6 +25,7 @@
 
 #include "affinity/atomic_file.h"
 #include "affinity/error.h"
+#include "exr_header_check.h"
 
 // The format is specified in docs/FRAME_FILES.md; keep the two in step.
 namespace affinity {
@@ -330,6 +331,7 @@ void checkMagic(const std::string& path) {
 
 SampleFrame readFrameFile(const std::string& path) {
     checkMagic(path);
+    checkExrHeader(path);  // before OpenEXR sizes any buffer from the header
     Imf::InputFile file(path.c_str());
     const Imf::Header& header = file.header();
 
