@@ -36,20 +36,23 @@ def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndar
     from the near plane, the schema from the eye.
     """
     height, width = p["combined"].shape[:2]
-    out = np.zeros((height, width, FEATURE_COUNT), np.float32)
+    out = np.empty((height, width, FEATURE_COUNT), np.float32)
 
     # Radiance: Cycles' light passes are stored divided by their colour pass.
-    diffuse = (rgb(p["diffuse_direct"]) + rgb(p["diffuse_indirect"])) * rgb(p["diffuse_color"])
-    out[..., DIFFUSE:DIFFUSE + 3] = diffuse
-    out[..., SPECULAR:SPECULAR + 3] = np.maximum(rgb(p["combined"]) - diffuse, 0.0)
+    diffuse = out[..., DIFFUSE:DIFFUSE + 3]
+    np.add(rgb(p["diffuse_direct"]), rgb(p["diffuse_indirect"]), out=diffuse)
+    diffuse *= rgb(p["diffuse_color"])
+    specular = out[..., SPECULAR:SPECULAR + 3]
+    np.subtract(rgb(p["combined"]), diffuse, out=specular)
+    np.maximum(specular, 0.0, out=specular)
 
     # v is where Cycles wrote its denoising features: the first hit that is not (near) specular.
-    cycles_normal = rgb(p["denoising_normal"]).astype(np.float64)
-    length = np.linalg.norm(cycles_normal, axis=-1)
+    cycles_normal = rgb(p["denoising_normal"])
+    length = np.sqrt(np.einsum("...i,...i->...", cycles_normal, cycles_normal))
     reached_v = length > 0.5
-    rotation = camera.camera_to_world[:3, :3] @ _CYCLES_CAMERA_TO_BLENDER_CAMERA
-    normal = (cycles_normal / np.maximum(length, 1e-12)[..., None]) @ rotation.T
-    out[..., NORMAL:NORMAL + 3] = np.where(reached_v[..., None], normal, 0.0)
+    rotation = (camera.camera_to_world[:3, :3] @ _CYCLES_CAMERA_TO_BLENDER_CAMERA)
+    scale = np.where(reached_v, 1.0 / np.maximum(length, 1e-12), 0.0).astype(np.float32)
+    out[..., NORMAL:NORMAL + 3] = (cycles_normal @ rotation.T.astype(np.float32)) * scale[..., None]
 
     first_distance = p["aov_distance"][..., 0]
     has_surface_aov = first_distance > 0.0
@@ -65,9 +68,9 @@ def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndar
         path_length = first_distance
     out[..., DEPTH] = np.where(miss, 0.0, path_length)
 
-    out[..., ALBEDO:ALBEDO + 3] = np.where(
-        reached_v[..., None], np.clip(rgb(p["denoising_albedo"]), 0.0, 1.0), 0.0
-    )
+    albedo = out[..., ALBEDO:ALBEDO + 3]
+    np.clip(rgb(p["denoising_albedo"]), 0.0, 1.0, out=albedo)
+    albedo *= reached_v[..., None]
 
     surface = rgb(p["aov_surface"])
     roughness = np.where(has_surface_aov, np.clip(surface[..., 0], ROUGHNESS_FLOOR, 1.0), 1.0)

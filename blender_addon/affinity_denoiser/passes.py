@@ -91,8 +91,9 @@ def shader_aovs(view_layer: Any) -> Iterator[None]:
 def read_result(result: Any) -> dict[str, np.ndarray]:
     """Every pass of the first layer of a render result as float32 (H, W, C), top row first.
 
-    Blender stores rows bottom-up; ``foreach_get`` into a preallocated array is fast (far faster
-    than converting ``rect`` element by element).
+    Blender stores rows bottom-up; the arrays are flipped views of the copied buffers.
+    ``foreach_get`` into a preallocated array is fast (far faster than converting ``rect``
+    element by element).
     """
     width, height = result.resolution_x, result.resolution_y
     layer = result.layers[0]
@@ -100,8 +101,7 @@ def read_result(result: Any) -> dict[str, np.ndarray]:
     for render_pass in layer.passes:
         buffer = np.empty(width * height * render_pass.channels, dtype=np.float32)
         render_pass.rect.foreach_get(buffer)
-        image = buffer.reshape(height, width, render_pass.channels)[::-1]
-        passes[render_pass.name] = np.ascontiguousarray(image)
+        passes[render_pass.name] = buffer.reshape(height, width, render_pass.channels)[::-1]
     return passes
 
 

@@ -153,6 +153,7 @@ class DenoiseRender:
         overrides.set(render, "use_single_layer", True)
         overrides.set(render, "use_compositing", False)
         overrides.set(render, "use_sequencer", False)
+        overrides.set(render, "use_border", False)  # features and motion cover the whole frame
         overrides.set(cycles, "use_denoising", False)
         overrides.set(cycles, "use_adaptive_sampling", False)
         if hasattr(cycles, "use_sample_subset"):  # Blender 4.x+: samples = the whole set
@@ -204,7 +205,10 @@ class DenoiseRender:
                 if sample == 0:  # Cycles writes Z for the sample at offset 0 only
                     depth = captured[names["depth"]][..., 0].copy()
                 for name, image in captured.items():
-                    sums[name] = sums[name] + image if name in sums else image.astype(np.float64)
+                    if name in sums:
+                        sums[name] += image
+                    else:
+                        sums[name] = image.copy()
                 done += 1
                 yield done
             assert depth is not None
@@ -213,7 +217,7 @@ class DenoiseRender:
             previous = (camera, depth)
             frame_data = features.frame_dict(samples, motion_vectors, valid, camera,
                                              scene.name, frame, scene.cycles.seed)
-            mean = {name: (total / spp).astype(np.float32) for name, total in sums.items()}
+            mean = {name: total / np.float32(spp) for name, total in sums.items()}
             self._finish_frame(denoiser, frame, frame_data, mean, overrides, use_compositing)
 
     def _sub_render(self, sample: int) -> dict[str, np.ndarray]:
