@@ -22,11 +22,14 @@ def _scene(tmp_path: Any) -> Any:
     return scene
 
 
-def test_render_animation_operator(tmp_path: Any) -> None:
+def test_render_animation_operator(tmp_path: Any, capfd: pytest.CaptureFixture[str]) -> None:
     _scene(tmp_path)
     assert bpy.ops.affinity_denoiser.render_animation() == {"FINISHED"}
     assert sorted(os.listdir(tmp_path / "out" / "affinity_denoised")) == [
         "denoised_0001.exr", "denoised_0002.exr", "final_0001.png", "final_0002.png"]
+    console = capfd.readouterr().out
+    assert "affinity_denoiser: frame 2 (2/2), sample 2/2 [3/4 sub-renders]" in console
+    assert "affinity_denoiser: denoised 2 frame(s) into" in console
 
 
 def test_render_frame_operator_without_temporal_history(tmp_path: Any) -> None:
@@ -36,6 +39,28 @@ def test_render_frame_operator_without_temporal_history(tmp_path: Any) -> None:
     assert bpy.ops.affinity_denoiser.render_frame() == {"FINISHED"}
     assert sorted(os.listdir(tmp_path / "out" / "affinity_denoised")) == [
         "denoised_0002.exr", "final_0002.png"]
+
+
+class _ResetCounter(backend.MeanDenoiser):
+    resets = 0
+
+    def reset(self) -> None:
+        type(self).resets += 1
+
+
+@pytest.mark.parametrize("temporal, resets", [(True, 0), (False, 2)])
+def test_temporal_switch_resets_history_per_frame(tmp_path: Any, temporal: bool,
+                                                  resets: int) -> None:
+    scene = _scene(tmp_path)
+    scene.affinity_denoiser.temporal = temporal
+    previous = backend._factory
+    _ResetCounter.resets = 0
+    backend.set_denoiser_factory(_ResetCounter)
+    try:
+        assert bpy.ops.affinity_denoiser.render_animation() == {"FINISHED"}
+    finally:
+        backend.set_denoiser_factory(previous)
+    assert _ResetCounter.resets == resets
 
 
 def test_errors_are_reported_with_the_core_message(tmp_path: Any) -> None:
