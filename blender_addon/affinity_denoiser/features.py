@@ -56,7 +56,8 @@ def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndar
 
     first_distance = p["aov_distance"][..., 0]
     has_surface_aov = first_distance > 0.0
-    emitter_first = rgb(p["emission"]).max(axis=-1) > 0.0
+    emission = p["emission"]  # (max over the last axis of a strided view is slow in numpy)
+    emitter_first = np.maximum(np.maximum(emission[..., 0], emission[..., 1]), emission[..., 2]) > 0
     # Nothing with a BSDF was reached and the first hit does not emit: the path escaped
     # (directly or through mirrors / clear glass).
     miss = ~reached_v & ~emitter_first
