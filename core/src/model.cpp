@@ -31,7 +31,8 @@ std::int64_t Model::parameterCount() const { return network_->parameterCount; }
 double Model::flopsPerPixel(int spp) const {
     const Network& n = *network_;
     double flops = 0.0;
-    for (const DenseLayer& layer : n.embedding->layers()) flops += 2.0 * layer.in * layer.out * spp;
+    for (std::size_t i = 1; i < n.embeddingWidths.size(); ++i)
+        flops += 2.0 * n.embeddingWidths[i - 1] * n.embeddingWidths[i] * spp;
     auto convs = [&](const std::vector<Conv2d>& block, double scale) {
         for (const Conv2d& c : block) flops += 2.0 * c.size() * c.size() * c.inChannels() * c.outChannels() * scale;
     };

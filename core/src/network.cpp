@@ -108,7 +108,10 @@ Network buildNetwork(const Weights& weights) {
     n.tapSize = b.config("config.kernel_size", 1, 15);
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
 
-    n.embedding.emplace(b.embedding());
+    std::vector<DenseLayer> dense = b.embedding();
+    n.embeddingWidths.push_back(dense.front().in);
+    for (const DenseLayer& layer : dense) n.embeddingWidths.push_back(layer.out);
+    n.embedding.emplace(std::move(dense));
     const int embeddingChannels = n.embedding->outChannels();
 
     int channels = 2 * embeddingChannels;  // concat(e_t, warped history)

@@ -15,6 +15,7 @@ class Weights;
 struct Network {
     std::string source;
     std::optional<Embedding> embedding;
+    std::vector<int> embeddingWidths;          // inputs of layer 0, then each layer's outputs
     std::vector<std::vector<Conv2d>> encoder;  // [level][conv]
     std::vector<Conv2d> bottleneck;
     std::vector<std::vector<Conv2d>> decoder;  // [level][conv], level 0 = full resolution

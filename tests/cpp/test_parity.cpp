@@ -1,0 +1,61 @@
+// Same function in two places: the C++ inference pipeline against the libtorch training
+// model on the same weights and the same multi-frame sequences (docs/MODEL.md).
+#include <cmath>
+#include <filesystem>
+
+#include <gtest/gtest.h>
+
+#include "affinity/denoiser.h"
+#include "random_model.h"
+#include "torch_reference.h"
+
+using namespace affinity;
+
+namespace {
+
+// max |a - b| / (|b| + 1e-3): relative, with a floor for near-black pixels.
+double maxRelativeDifference(const std::vector<float>& a, const std::vector<float>& b) {
+    double worst = 0.0;
+    for (std::size_t i = 0; i < a.size(); ++i)
+        worst = std::max(worst, std::abs(double(a[i]) - b[i]) / (std::abs(double(b[i])) + 1e-3));
+    return worst;
+}
+
+void expectParity(const std::string& weightsPath, const std::vector<SampleFrame>& frames) {
+    const std::vector<std::vector<float>> expected = train::torchDenoiseSequence(weightsPath, frames);
+    Denoiser denoiser(Model::fromFile(weightsPath));
+    ASSERT_EQ(expected.size(), frames.size());
+    for (std::size_t t = 0; t < frames.size(); ++t) {
+        std::vector<float> actual = denoiser.denoise(frames[t]);
+        ASSERT_EQ(actual.size(), expected[t].size());
+        EXPECT_LT(maxRelativeDifference(actual, expected[t]), 1e-4) << weightsPath << " frame " << t;
+    }
+}
+
+std::string temporaryPath(const std::string& name) {
+    return (std::filesystem::temp_directory_path() / ("affinity_parity_" + name)).string();
+}
+
+}  // namespace
+
+TEST(Parity, RandomWeightsOnRandomSequences) {
+    for (unsigned seed : {1u, 2u}) {
+        const std::string path = temporaryPath("random" + std::to_string(seed) + ".affw");
+        train::writeWeightsFile(path, test::randomModelTensors(test::ModelShape{}, seed));
+        expectParity(path, test::randomSequence(4, 23, 17, 3, seed));
+        std::filesystem::remove(path);
+    }
+}
+
+TEST(Parity, EveryPresetAtInitialisation) {
+    for (const std::string& preset : train::presetNames()) {
+        const std::string path = temporaryPath(preset + ".affw");
+        train::writeInitialModel(train::presetConfig(preset), 7, path);
+        expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
+        std::filesystem::remove(path);
+    }
+}
+
+TEST(Parity, TheShippedDefaultModel) {
+    expectParity(std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw", test::randomSequence(3, 16, 16, 4, 5));
+}
