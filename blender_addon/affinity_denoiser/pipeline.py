@@ -21,6 +21,21 @@ from .overrides import Overrides
 MAX_SAMPLES_PER_FRAME = 8
 
 
+#: Blender versions whose sample subsets were checked to render exactly one sample of the set.
+#: A behaviour check, not an API one: bpy 4.2.23 has ``use_sample_subset`` but ignores
+#: ``sample_subset_length`` (a subset at offset k renders samples k..samples-1, so offset 0 is
+#: the whole render); there ``samples = 1`` with ``sample_offset`` gives one distinct sample per
+#: offset. See docs/BLENDER.md.
+SAMPLE_SUBSETS_VERIFIED_FROM = (5, 0, 0)
+
+
+def uses_sample_subsets(cycles_settings: Any) -> bool:
+    import bpy
+
+    return (hasattr(cycles_settings, "use_sample_subset")
+            and bpy.app.version >= SAMPLE_SUBSETS_VERIFIED_FROM)
+
+
 class Cancelled(RuntimeError):
     """The render was cancelled (Esc, or the render job reported a break)."""
 
@@ -156,11 +171,12 @@ class DenoiseRender:
         overrides.set(render, "use_border", False)  # features and motion cover the whole frame
         overrides.set(cycles, "use_denoising", False)
         overrides.set(cycles, "use_adaptive_sampling", False)
-        if hasattr(cycles, "use_sample_subset"):  # Blender 4.x+: samples = the whole set
+        if uses_sample_subsets(cycles):  # samples = the whole set, one of them per render
             overrides.set(cycles, "samples", self.settings.samples_per_frame)
             overrides.set(cycles, "use_sample_subset", True)
             overrides.set(cycles, "sample_subset_length", 1)
-        else:  # earlier Cycles: render 1 sample starting at sample_offset
+        else:  # render 1 sample starting at sample_offset
+            overrides.set_if_present(cycles, "use_sample_subset", False)
             overrides.set(cycles, "samples", 1)
         overrides.set(cycles, "sample_offset", 0)
         # The denoise-render replaces the view layer's sample count, if it has one.
