@@ -74,18 +74,6 @@ def create_denoiser(model_path: str) -> SequenceDenoiser:
     return affinity.Denoiser(os.path.abspath(model_path) if model_path else None)
 
 
-def error_types() -> tuple[type[BaseException], ...]:
-    """Exceptions that carry a message for the user (the core's, and ours)."""
-    types: list[type[BaseException]] = [CoreMissing]
-    try:
-        import affinity
-
-        types.append(affinity.Error)
-    except ImportError:
-        pass
-    return tuple(types)
-
-
 def write_sample_frame(path: str, frame: dict[str, Any]) -> None:
     """Writes the per-sample frame file (docs/FRAME_FILES.md) through the core, atomically."""
     load_core(need_denoiser=False).write_frame(path, frame)

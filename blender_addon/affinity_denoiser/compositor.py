@@ -26,10 +26,6 @@ def compositing_tree(scene: Any) -> Any:
     return None
 
 
-def uses_compositor(scene: Any) -> bool:
-    return bool(scene.render.use_compositing) and compositing_tree(scene) is not None
-
-
 def update_denoised_node(scene: Any, first_file: str, first_frame: int, frame_count: int) -> Any:
     """Points the ``Affinity Denoised`` Image node at a denoised sequence (created if needed).
 

@@ -98,7 +98,7 @@ class _DenoiseRenderBase:
             self.report({"WARNING"}, "denoise-render cancelled")
             return {"CANCELLED"}
         if event.type != "TIMER":
-            return {"PASS_THROUGH"}
+            return {"RUNNING_MODAL"}  # like Blender's own render: no edits while rendering
         try:
             next(self._steps)
         except StopIteration:

@@ -126,7 +126,9 @@ class DenoiseRender:
         return names
 
     def _final_name(self, frame: int) -> str:
-        return output.final_name(frame, self.scene.render.file_extension)
+        # A movie format cannot hold one frame per file: those frames are saved as PNG.
+        extension = ".png" if self.scene.render.is_movie_format else self.scene.render.file_extension
+        return output.final_name(frame, extension)
 
     def steps(self) -> Iterator[int]:
         """Yields the number of sub-renders done so far, after each one."""
@@ -300,7 +302,14 @@ class DenoiseRender:
             engine.session.present = None
             self.scene.render.use_compositing = False
         final_path = os.path.join(self.folder, self._final_name(frame))
-        output.write_render_result(final_path, self.scene)
+        if self.scene.render.is_movie_format:
+            with Overrides() as png:
+                settings = self.scene.render.image_settings
+                png.set_if_present(settings, "media_type", "IMAGE")
+                png.set(settings, "file_format", "PNG")
+                output.write_render_result(final_path, self.scene)
+        else:
+            output.write_render_result(final_path, self.scene)
         self.timings.present.append(time.perf_counter() - start)
 
         self.results.append(FrameResult(frame, denoised_path, final_path, sample_frame_path,

@@ -145,3 +145,17 @@ def test_non_cycles_scene_is_refused(tmp_path: Any) -> None:
         _job(scene, [1]).run()
     assert not os.path.exists(tmp_path / "render")
     assert bpy.data.materials["Floor"].node_tree.nodes.get("affinity_tmp_1") is None
+
+
+def test_movie_output_format_gives_png_frames(tmp_path: Any) -> None:
+    scene = _scene(tmp_path)
+    settings = scene.render.image_settings
+    if hasattr(settings, "media_type"):  # Blender 5: choose the media type first
+        settings.media_type = "VIDEO"
+    settings.file_format = "FFMPEG"
+    assert scene.render.is_movie_format
+    job = _job(scene, [1])
+    job.run()
+    assert sorted(os.listdir(job.folder)) == ["denoised_0001.exr", "final_0001.png"]
+    assert scenes.read_image(job.results[0].final_path).shape == (24, 32, 4)
+    assert settings.file_format == "FFMPEG" and scene.render.is_movie_format
