@@ -93,3 +93,47 @@ def test_panel_and_settings_are_registered() -> None:
             settings.output_folder) == (4, True, "", "")
     settings.samples_per_frame = 99
     assert settings.samples_per_frame == 8
+
+
+class _Layout:
+    """Records what a panel draws (there is no window in background mode)."""
+
+    def __init__(self) -> None:
+        self.drawn: list[str] = []
+        self.use_property_split = self.use_property_decorate = False
+        self.active = self.enabled = True
+
+    def column(self, **_: Any) -> "_Layout":
+        return self
+
+    def row(self, **_: Any) -> "_Layout":
+        return self
+
+    def prop(self, data: Any, name: str, **_: Any) -> None:
+        assert hasattr(data, name), name
+        self.drawn.append(name)
+
+    def operator(self, idname: str, **_: Any) -> None:
+        module, name = idname.split(".")
+        assert hasattr(getattr(bpy.ops, module), name), idname
+        self.drawn.append(idname)
+
+    def label(self, text: str = "", **_: Any) -> None:
+        self.drawn.append(text)
+
+
+def test_panel_draws_every_setting_and_both_operators() -> None:
+    scene = scenes.build_scene(frames=1)
+    panel_class = bpy.types.AFFINITY_DENOISER_PT_render
+    context = type("Context", (), {"scene": scene})()
+    assert panel_class.poll(context)
+    fake = type("Panel", (), {"layout": _Layout()})()
+    panel_class.draw(fake, context)
+    panel_class.draw_header(fake, context)
+    assert fake.layout.drawn[:5] == ["samples_per_frame", "model_path", "temporal",
+                                     "output_folder", "keep_sample_frames"]
+    assert "affinity_denoiser.render_frame" in fake.layout.drawn
+    assert "affinity_denoiser.render_animation" in fake.layout.drawn
+    assert fake.layout.drawn[-1] == "enabled"
+    scene.render.engine = "BLENDER_WORKBENCH"
+    assert not panel_class.poll(context)
