@@ -46,7 +46,8 @@ def base_folder(scene: Any, folder_setting: str) -> str:
 
     if folder_setting:
         return os.path.abspath(bpy.path.abspath(folder_setting))
-    render_path = bpy.path.abspath(scene.render.filepath) or bpy.app.tempdir
+    # An empty path, or '//' in an unsaved file, means the working directory (as for Blender).
+    render_path = bpy.path.abspath(scene.render.filepath)
     render_dir = render_path if render_path.endswith(os.sep) else os.path.dirname(render_path)
     return os.path.join(os.path.abspath(render_dir or "."), DEFAULT_FOLDER_NAME)
 

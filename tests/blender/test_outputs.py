@@ -159,3 +159,13 @@ def test_movie_output_format_gives_png_frames(tmp_path: Any) -> None:
     assert sorted(os.listdir(job.folder)) == ["denoised_0001.exr", "final_0001.png"]
     assert scenes.read_image(job.results[0].final_path).shape == (24, 32, 4)
     assert settings.file_format == "FFMPEG" and scene.render.is_movie_format
+
+
+def test_default_folder_is_beside_the_render_output(tmp_path: Any) -> None:
+    scene = _scene(tmp_path)
+    for render_path in (str(tmp_path / "shots" / "frame_"), str(tmp_path / "shots") + os.sep):
+        scene.render.filepath = render_path
+        assert output.base_folder(scene, "") == str(tmp_path / "shots" / "affinity_denoised")
+    assert output.base_folder(scene, str(tmp_path / "chosen")) == str(tmp_path / "chosen")
+    assert output.choose_run_folder(str(tmp_path / "none_yet"), ["a.exr"]) == str(
+        tmp_path / "none_yet")
