@@ -25,34 +25,40 @@ _CYCLES_CAMERA_TO_BLENDER_CAMERA = np.diag([1.0, 1.0, -1.0])
 _BOUNCE_TOLERANCE = 1e-3
 
 
-def rgb(image: np.ndarray) -> np.ndarray:
-    return image[..., :3]
-
-
 def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndarray) -> np.ndarray:
     """The (H, W, 18) float32 features of one sample from its passes keyed by role.
 
     ``ray_start`` is ``motion.ray_start_distance(camera)``: Cycles measures its denoising depth
-    from the near plane, the schema from the eye.
+    from the near plane, the schema from the eye. Computed channel by channel into planar
+    storage (twice as fast as working on the interleaved layout); the result is a view.
     """
     height, width = p["combined"].shape[:2]
-    out = np.empty((height, width, FEATURE_COUNT), np.float32)
+    out = np.empty((FEATURE_COUNT, height, width), np.float32)
+
+    def channel(role: str, c: int) -> np.ndarray:
+        return p[role][..., c]
 
     # Radiance: Cycles' light passes are stored divided by their colour pass.
-    diffuse = out[..., DIFFUSE:DIFFUSE + 3]
-    np.add(rgb(p["diffuse_direct"]), rgb(p["diffuse_indirect"]), out=diffuse)
-    diffuse *= rgb(p["diffuse_color"])
-    specular = out[..., SPECULAR:SPECULAR + 3]
-    np.subtract(rgb(p["combined"]), diffuse, out=specular)
-    np.maximum(specular, 0.0, out=specular)
+    for c in range(3):
+        diffuse = out[DIFFUSE + c]
+        np.add(channel("diffuse_direct", c), channel("diffuse_indirect", c), out=diffuse)
+        diffuse *= channel("diffuse_color", c)
+        specular = out[SPECULAR + c]
+        np.subtract(channel("combined", c), diffuse, out=specular)
+        np.maximum(specular, 0.0, out=specular)
 
     # v is where Cycles wrote its denoising features: the first hit that is not (near) specular.
-    cycles_normal = rgb(p["denoising_normal"])
-    length = np.sqrt(np.einsum("...i,...i->...", cycles_normal, cycles_normal))
+    n = [channel("denoising_normal", c) for c in range(3)]
+    length = np.sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2])
     reached_v = length > 0.5
-    rotation = (camera.camera_to_world[:3, :3] @ _CYCLES_CAMERA_TO_BLENDER_CAMERA)
+    rotation = (camera.camera_to_world[:3, :3] @ _CYCLES_CAMERA_TO_BLENDER_CAMERA).astype(np.float32)
     scale = np.where(reached_v, 1.0 / np.maximum(length, 1e-12), 0.0).astype(np.float32)
-    out[..., NORMAL:NORMAL + 3] = (cycles_normal @ rotation.T.astype(np.float32)) * scale[..., None]
+    for row in range(3):
+        normal = out[NORMAL + row]
+        np.multiply(n[0], rotation[row, 0], out=normal)
+        normal += n[1] * rotation[row, 1]
+        normal += n[2] * rotation[row, 2]
+        normal *= scale
 
     first_distance = p["aov_distance"][..., 0]
     has_surface_aov = first_distance > 0.0
@@ -67,22 +73,23 @@ def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndar
         path_length = np.where(denoising_depth > 0.0, denoising_depth + ray_start, 0.0)
     else:  # Cycles without a denoising depth pass: the first hit's distance
         path_length = first_distance
-    out[..., DEPTH] = np.where(miss, 0.0, path_length)
+    out[DEPTH] = np.where(miss, 0.0, path_length)
 
-    albedo = out[..., ALBEDO:ALBEDO + 3]
-    np.clip(rgb(p["denoising_albedo"]), 0.0, 1.0, out=albedo)
-    albedo *= reached_v[..., None]
+    for c in range(3):
+        albedo = out[ALBEDO + c]
+        np.clip(channel("denoising_albedo", c), 0.0, 1.0, out=albedo)
+        albedo *= reached_v
 
-    surface = rgb(p["aov_surface"])
+    surface = p["aov_surface"]
     roughness = np.where(has_surface_aov, np.clip(surface[..., 0], ROUGHNESS_FLOOR, 1.0), 1.0)
-    out[..., ROUGHNESS] = np.where(miss, 0.0, roughness)
-    out[..., EMISSIVE] = miss | emitter_first
-    out[..., METALLIC] = ~miss & has_surface_aov & (surface[..., 1] > 0.5)
-    out[..., TRANSMISSIVE] = has_surface_aov & (surface[..., 2] > 0.5)
+    out[ROUGHNESS] = np.where(miss, 0.0, roughness)
+    out[EMISSIVE] = miss | emitter_first
+    out[METALLIC] = ~miss & has_surface_aov & (surface[..., 1] > 0.5)
+    out[TRANSMISSIVE] = has_surface_aov & (surface[..., 2] > 0.5)
 
     went_on = path_length > first_distance * (1.0 + _BOUNCE_TOLERANCE) + 1e-4
-    out[..., SPECULAR_BOUNCE] = has_surface_aov & (went_on | miss)
-    return out
+    out[SPECULAR_BOUNCE] = has_surface_aov & (went_on | miss)
+    return out.transpose(1, 2, 0)
 
 
 def frame_dict(
