@@ -34,7 +34,7 @@ struct BlockArgs {
 };
 
 // acc[m] += sum over j < count of in[m * stride + j] * w[j] for M pixels: the innermost loop,
-// 2 x M FMAs per weight vector pair, every operand in a register or one load away.
+// M x N FMAs per j, each operand in a register or one load away.
 template <int M, int N>
 inline void accumulate(Float8 (&acc)[M][N], const float* in, std::size_t stride, int count, const float* w) {
     // One pointer per pixel, indexed by j: base + index addressing, no address arithmetic.
@@ -119,8 +119,8 @@ void convTail(const BlockArgs& a, int x, int count, float* out) {
 }
 
 // Columns [x0, x1) of one channel block. Pixels within `radius` of the left or right border
-// go one at a time with their missing taps skipped (adding a zero-padded tap would add
-// exactly +0, so skipping gives the same result); the rest in blocks of M.
+// go one at a time with their missing taps skipped (a zero-padded tap adds 0 * w, which
+// changes no sum for finite weights); the rest in blocks of M.
 template <int N>
 void convolveRange(BlockArgs a, int x0, int x1, float* outRow) {
     constexpr int M = kBlockPixels<N>;
