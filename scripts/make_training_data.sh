@@ -1,0 +1,55 @@
+#!/usr/bin/env bash
+# Renders the training and validation sequences of the procedural scene generator into a
+# cache outside the repository (docs/TRAINING.md):
+#   ${AFFINITY_DATA:-$HOME/.cache/affinity/data-v1}/train/seed_NNNNN   training sequences
+#   ${AFFINITY_DATA:-$HOME/.cache/affinity/data-v1}/val/seed_NNNNN     held-out validation sequences
+# Training sequences use a moderate reference (TRAIN_REFERENCE_SPP, default 64: a Noise2Noise-style
+# target that is far less noisy than the 2-8 spp input); validation sequences always get a
+# clean reference (VAL_REFERENCE_SPP, default 256). Finished sequences (render_summary.json
+# present) are skipped, so the command can be interrupted and re-run to continue.
+#
+# Settings (environment): TRAIN_SEEDS (default "1000-1099"), VAL_SEEDS ("9000-9003"),
+# FRAMES (6), SIZE (96x96), SPP (8), TRAIN_REFERENCE_SPP (64), VAL_REFERENCE_SPP (256),
+# JOBS (parallel renders, default 1), AFFINITY_BIN (default build/core/affinity).
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+data=${AFFINITY_DATA:-$HOME/.cache/affinity/data-v1}
+bin=${AFFINITY_BIN:-$root/build/core/affinity}
+train_seeds=${TRAIN_SEEDS:-1000-1099}
+val_seeds=${VAL_SEEDS:-9000-9003}
+frames=${FRAMES:-6}
+size=${SIZE:-96x96}
+spp=${SPP:-8}
+train_ref=${TRAIN_REFERENCE_SPP:-64}
+val_ref=${VAL_REFERENCE_SPP:-256}
+jobs=${JOBS:-1}
+[ -x "$bin" ] || { echo "make_training_data: $bin not built (cmake --build build --target affinity)" >&2; exit 1; }
+
+expand() {  # "a-b" or "a,b,c" -> one seed per line
+  local part
+  for part in ${1//,/ }; do
+    if [[ $part == *-* ]]; then seq "${part%-*}" "${part#*-}"; else echo "$part"; fi
+  done
+}
+
+render_one() {  # split seed reference_spp
+  local split=$1 seed=$2 ref=$3
+  local dir
+  dir=$(printf '%s/%s/seed_%05d' "$data" "$split" "$seed")
+  [ -f "$dir/render_summary.json" ] && return 0
+  # Different animation phases across seeds: the camera path spans frames 0..16.
+  local first=$(( seed % 11 ))
+  "$bin" render --scene "procedural:$seed" --frames "$frames" --first-frame "$first" --spp "$spp" \
+    --size "$size" --reference-spp "$ref" --seed "$seed" --out "$dir" --compression piz --force >/dev/null
+  echo "$split seed $seed done ($(date +%H:%M:%S))"
+}
+export -f render_one
+export data bin frames size spp
+
+mkdir -p "$data/train" "$data/val"
+start=$(date +%s)
+{
+  for seed in $(expand "$val_seeds"); do echo "val $seed $val_ref"; done
+  for seed in $(expand "$train_seeds"); do echo "train $seed $train_ref"; done
+} | xargs -P "$jobs" -n 3 bash -c 'render_one "$@"' _
+echo "make_training_data: $(ls "$data/train" | wc -l) training and $(ls "$data/val" | wc -l) validation sequences in $data ($(( $(date +%s) - start )) s)"
