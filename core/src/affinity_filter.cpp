@@ -1,0 +1,421 @@
+#include "affinity_filter.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+#include <utility>
+#include <vector>
+
+#include "affinity/error.h"
+#include "fast_exp.h"
+
+namespace affinity {
+namespace {
+
+constexpr float kEpsilon = 1e-8f;
+constexpr int kLanes = 8;
+constexpr int kStripVectors = 8;
+constexpr int kStripPixels = kStripVectors * kLanes;
+constexpr int kRadianceChannels = 3;
+// Feature counts with a specialised kernel (centre features held in registers); others use
+// the generic one.
+constexpr int kMaxSpecialisedFeatures = 16;
+
+Vec8f load8(const float* p) {
+    Vec8f v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+
+// Planar, zero-padded copies of image rows. The inputs are NHWC (a pixel's channels adjacent);
+// the kernels want each channel's row contiguous so that eight neighbouring pixels are one
+// vector load (indexing NHWC per channel makes the compiler gather, about 4x slower). Each row
+// is transposed once per thread into a ring of slots covering the rows a kernel reaches.
+class PlanarRows {
+public:
+    // `pad` zero columns on the left, `pad + kStripPixels` on the right (a strip starting near
+    // the last pixel reads past it); `span` rows are held at once.
+    PlanarRows(std::vector<const FeatureMap*> sources, int pad, int span)
+        : sources_(std::move(sources)), width_(sources_.front()->width()), pad_(pad) {
+        for (const FeatureMap* source : sources_) planes_ += source->channels();
+        // Planes start on 64-byte boundaries relative to the slot.
+        stride_ = (std::size_t(pad_) * 2 + width_ + kStripPixels + 15) / 16 * 16;
+        slots_ = std::max(1, std::min(span, sources_.front()->height()));
+        slotRow_.assign(std::size_t(slots_), -1);
+        storage_.assign(std::size_t(slots_) * planes_ * stride_, 0.0f);
+    }
+
+    std::size_t stride() const { return stride_; }
+
+    // Pointer to column 0 of plane 0 of row y; plane k starts stride() * k floats later.
+    const float* row(int y) {
+        const std::size_t slot = std::size_t(y % slots_);
+        float* base = storage_.data() + slot * planes_ * stride_ + pad_;
+        if (slotRow_[slot] != y) {
+            transpose(y, base);
+            slotRow_[slot] = y;
+        }
+        return base;
+    }
+
+private:
+    void transpose(int y, float* destination) const {
+        for (const FeatureMap* source : sources_) {
+            const int channels = source->channels();
+            const float* pixels = source->pixel(y, 0);
+            switch (channels) {
+                case 1: std::memcpy(destination, pixels, std::size_t(width_) * sizeof(float)); break;
+                case 3: deinterleave<3>(pixels, destination); break;
+                case 8: deinterleave<8>(pixels, destination); break;
+                default: deinterleave<0>(pixels, destination, channels); break;
+            }
+            destination += std::size_t(channels) * stride_;
+        }
+    }
+
+    // Pixel by pixel: contiguous reads, and with the channel count known at compile time the
+    // compiler turns each pixel into a few vector shuffles.
+    template <int kChannels>
+    void deinterleave(const float* pixels, float* planes, int runtimeChannels = 0) const {
+        const int channels = kChannels > 0 ? kChannels : runtimeChannels;
+        for (int x = 0; x < width_; ++x) {
+            const float* pixel = pixels + std::size_t(x) * channels;
+            for (int c = 0; c < channels; ++c) planes[std::size_t(c) * stride_ + x] = pixel[c];
+        }
+    }
+
+    std::vector<const FeatureMap*> sources_;
+    int width_;
+    int pad_;
+    int planes_ = 0;
+    std::size_t stride_ = 0;
+    int slots_ = 1;
+    std::vector<int> slotRow_;
+    std::vector<float> storage_;
+};
+
+// Everything one output row needs: planar rows of the centre and of each neighbour row.
+struct RowInputs {
+    int width;
+    int features;
+    std::size_t stride;          // of the spatial rows
+    const float* centre;         // features, radiance, a, c (and b when temporal) at row y
+    const float* const* taps;    // per tap row j = 0..T-1: features and radiance, or null outside
+    int tapSize;
+    int dilation;
+    std::size_t temporalStride;  // of the temporal rows
+    const float* const* temporalRows;  // rows y-1, y, y+1: warped features, output, validity
+};
+
+// Sum of squared feature differences between the centre pixels and the pixels at `neighbour`.
+// Four partial sums keep the dependency chain short; the pointers advance plane by plane so the
+// loop needs two address registers rather than one per feature plane.
+template <int kFeatures>
+Vec8f squaredDistance(const float* centre, const float* neighbour, std::size_t centreStride,
+                      std::size_t neighbourStride, int features) {
+    Vec8f partial[4] = {};
+    const int count = kFeatures > 0 ? kFeatures : features;
+    for (int c = 0; c < count; ++c) {
+        const Vec8f d = load8(centre) - load8(neighbour);
+        partial[c % 4] += d * d;
+        centre += centreStride;
+        neighbour += neighbourStride;
+    }
+    return (partial[0] + partial[1]) + (partial[2] + partial[3]);
+}
+
+// The weighted sums of one strip of kStripPixels pixels. Loops run tap by tap over the strip's
+// vectors, which are independent, so the processor overlaps their long exp chains; the
+// accumulators stay in L1.
+struct StripSums {
+    Vec8f r[kStripVectors], g[kStripVectors], b[kStripVectors], weight[kStripVectors];
+};
+
+// Adds the taps of one neighbour row at horizontal offset `offset` (in pixels).
+// kCheckColumns: some taps may fall outside the image horizontally and are masked out.
+template <int kFeatures, bool kCheckColumns>
+void addTaps(StripSums& sums, const Vec8f* negativeBandwidthSquared, const float* centre, std::size_t centreStride,
+             const float* neighbour, std::size_t neighbourStride, const float* radiance, const float* validity,
+             int features, int column, int width) {
+    const Vec8i lane = {0, 1, 2, 3, 4, 5, 6, 7};
+    for (int v = 0; v < kStripVectors; ++v) {
+        const int at = v * kLanes;
+        const Vec8f distance =
+            squaredDistance<kFeatures>(centre + at, neighbour + at, centreStride, neighbourStride, features);
+        Vec8f weight = fastExpNonPositive(negativeBandwidthSquared[v] * distance);
+        if (validity != nullptr) weight *= load8(validity + at);
+        if constexpr (kCheckColumns) {
+            const Vec8i columns = lane + (column + at);
+            weight = ((columns >= 0) & (columns < width)) ? weight : Vec8f{};
+        }
+        sums.r[v] += weight * load8(radiance + at);
+        sums.g[v] += weight * load8(radiance + neighbourStride + at);
+        sums.b[v] += weight * load8(radiance + 2 * neighbourStride + at);
+        sums.weight[v] += weight;
+    }
+}
+
+// Filters the kStripPixels pixels starting at column x of one row (lanes past the image's
+// right edge compute on zero padding and are not stored).
+template <int kFeatures, bool kCheckColumns, bool kTemporal>
+void filterStrip(const RowInputs& in, int x, float* output) {
+    const int features = kFeatures > 0 ? kFeatures : in.features;
+    const std::size_t stride = in.stride;
+    const float* centre = in.centre + x;
+    const float* centreRadiance = centre + features * stride;
+    const float* bandwidth = centre + (features + 3) * stride;
+    const float* centreWeight = centre + (features + 4) * stride;
+
+    StripSums sums;
+    Vec8f negativeBandwidthSquared[kStripVectors];
+    for (int v = 0; v < kStripVectors; ++v) {
+        const int at = v * kLanes;
+        const Vec8f a = load8(bandwidth + at);
+        negativeBandwidthSquared[v] = -(a * a);
+        const Vec8f c = load8(centreWeight + at);
+        sums.r[v] = c * load8(centreRadiance + at);
+        sums.g[v] = c * load8(centreRadiance + stride + at);
+        sums.b[v] = c * load8(centreRadiance + 2 * stride + at);
+        sums.weight[v] = c;
+    }
+
+    const int radius = in.tapSize / 2;
+    for (int j = 0; j < in.tapSize; ++j) {
+        const float* tapRow = in.taps[j];
+        if (tapRow == nullptr) continue;
+        for (int i = -radius; i <= radius; ++i) {
+            if (i == 0 && j == radius) continue;  // the centre, weighted by c above
+            const int column = x + i * in.dilation;
+            const float* neighbour = tapRow + column;
+            addTaps<kFeatures, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride, neighbour, stride,
+                                              neighbour + features * stride, nullptr, features, column, in.width);
+        }
+    }
+
+    if constexpr (kTemporal) {
+        const std::size_t temporalStride = in.temporalStride;
+        const float* temporalBandwidth = centre + (features + 5) * stride;
+        Vec8f negativeTemporalSquared[kStripVectors];
+        for (int v = 0; v < kStripVectors; ++v) {
+            const Vec8f b = load8(temporalBandwidth + v * kLanes);
+            negativeTemporalSquared[v] = -(b * b);
+        }
+        for (int j = 0; j < 3; ++j) {
+            const float* tapRow = in.temporalRows[j];
+            if (tapRow == nullptr) continue;
+            for (int i = -1; i <= 1; ++i) {
+                const int column = x + i;
+                const float* neighbour = tapRow + column;
+                const float* warpedOutput = neighbour + features * temporalStride;
+                addTaps<kFeatures, kCheckColumns>(sums, negativeTemporalSquared, centre, stride, neighbour,
+                                                  temporalStride, warpedOutput, warpedOutput + 3 * temporalStride,
+                                                  features, column, in.width);
+            }
+        }
+    }
+
+    const int count = std::min(kStripPixels, in.width - x);
+    for (int v = 0; v * kLanes < count; ++v) {
+        const Vec8f normaliser = sums.weight[v] + kEpsilon;
+        const Vec8f r = sums.r[v] / normaliser, g = sums.g[v] / normaliser, b = sums.b[v] / normaliser;
+        const int lanes = std::min(kLanes, count - v * kLanes);
+        float* out = output + 3 * std::size_t(v * kLanes);
+        for (int l = 0; l < lanes; ++l) {
+            out[3 * l] = r[l];
+            out[3 * l + 1] = g[l];
+            out[3 * l + 2] = b[l];
+        }
+    }
+}
+
+template <int kFeatures, bool kTemporal>
+void filterRow(const RowInputs& in, float* output) {
+    // Strips whose taps all lie inside the image need no column test.
+    const int margin = std::max((in.tapSize / 2) * in.dilation, kTemporal ? 1 : 0);
+    for (int x = 0; x < in.width; x += kStripPixels) {
+        const bool interior = x - margin >= 0 && x + kStripPixels - 1 + margin < in.width;
+        if (interior) {
+            filterStrip<kFeatures, false, kTemporal>(in, x, output + 3 * std::size_t(x));
+        } else {
+            filterStrip<kFeatures, true, kTemporal>(in, x, output + 3 * std::size_t(x));
+        }
+    }
+}
+
+using RowFunction = void (*)(const RowInputs&, float*);
+
+template <bool kTemporal, int... kCounts>
+RowFunction selectRowFunction(int features, std::integer_sequence<int, kCounts...>) {
+    RowFunction chosen = &filterRow<0, kTemporal>;
+    ((features == kCounts + 1 ? (chosen = &filterRow<kCounts + 1, kTemporal>, 0) : 0), ...);
+    return chosen;
+}
+
+template <bool kTemporal>
+RowFunction rowFunctionFor(int features) {
+    return selectRowFunction<kTemporal>(features, std::make_integer_sequence<int, kMaxSpecialisedFeatures>{});
+}
+
+void checkMap(const FeatureMap& map, const char* name, int height, int width, int channels) {
+    if (map.height() != height || map.width() != width || map.channels() != channels) {
+        throw Error(std::string("affinity filter: ") + name + " is " + std::to_string(map.height()) + " x " +
+                    std::to_string(map.width()) + " x " + std::to_string(map.channels()) + ", expected " +
+                    std::to_string(height) + " x " + std::to_string(width) + " x " + std::to_string(channels));
+    }
+}
+
+struct TemporalInputs {
+    const FeatureMap* bandwidth;
+    const FeatureMap* output;
+    const FeatureMap* features;
+    const FeatureMap* valid;
+};
+
+void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                 const TemporalInputs* temporal) {
+    if (kernel.features == nullptr || kernel.bandwidth == nullptr || kernel.centre == nullptr) {
+        throw Error("affinity filter: a kernel parameter map is missing");
+    }
+    if (tapSize < 1 || tapSize % 2 == 0) {
+        throw Error("affinity filter: the tap grid size " + std::to_string(tapSize) + " is not a positive odd number");
+    }
+    if (dilation < 1) throw Error("affinity filter: dilation " + std::to_string(dilation) + " is below 1");
+    const int height = radiance.height(), width = radiance.width();
+    const int features = kernel.features->channels();
+    if (features < 1) throw Error("affinity filter: the kernel has no features");
+    checkMap(radiance, "the radiance", height, width, kRadianceChannels);
+    checkMap(*kernel.features, "the features", height, width, features);
+    checkMap(*kernel.bandwidth, "the bandwidth a", height, width, 1);
+    checkMap(*kernel.centre, "the centre weight c", height, width, 1);
+    if (temporal != nullptr) {
+        checkMap(*temporal->bandwidth, "the temporal bandwidth b", height, width, 1);
+        checkMap(*temporal->output, "the warped output", height, width, kRadianceChannels);
+        checkMap(*temporal->features, "the warped features", height, width, features);
+        checkMap(*temporal->valid, "the warped validity", height, width, 1);
+    }
+}
+
+// The shared driver of both passes: rows in parallel, each thread with its own planar rows.
+void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+               const TemporalInputs* temporal, FeatureMap& output) {
+    checkInputs(radiance, kernel, tapSize, dilation, temporal);
+    const int height = radiance.height(), width = radiance.width();
+    const int features = kernel.features->channels();
+
+    // Writing into a buffer that is also read would race between rows.
+    const bool outputAliasesInput = &output == &radiance || &output == kernel.features ||
+                                    &output == kernel.bandwidth || &output == kernel.centre ||
+                                    (temporal != nullptr && (&output == temporal->bandwidth || &output == temporal->output ||
+                                                             &output == temporal->features || &output == temporal->valid));
+    FeatureMap separate;
+    FeatureMap& target = outputAliasesInput ? separate : output;
+    target.resize(height, width, kRadianceChannels);
+    if (height == 0 || width == 0) {
+        if (outputAliasesInput) output = std::move(separate);
+        return;
+    }
+
+    const int radius = tapSize / 2;
+    const int pad = radius * dilation;
+    std::vector<const FeatureMap*> spatialSources = {kernel.features, &radiance, kernel.bandwidth, kernel.centre};
+    if (temporal != nullptr) spatialSources.push_back(temporal->bandwidth);
+    const RowFunction filterRowFunction = temporal != nullptr ? rowFunctionFor<true>(features) : rowFunctionFor<false>(features);
+
+    // Allocated outside the parallel region so that an allocation failure throws normally.
+    const int threads = std::max(1, omp_get_max_threads());
+    std::vector<PlanarRows> spatialRows, temporalRows;
+    for (int t = 0; t < threads; ++t) {
+        spatialRows.emplace_back(spatialSources, std::max(pad, 1), 2 * pad + 1);
+        if (temporal != nullptr) {
+            temporalRows.emplace_back(std::vector<const FeatureMap*>{temporal->features, temporal->output, temporal->valid}, 1, 3);
+        }
+    }
+
+#pragma omp parallel num_threads(threads)
+    {
+        const int thread = omp_get_thread_num();
+        PlanarRows& spatial = spatialRows[std::size_t(thread)];
+        PlanarRows* temporalCache = temporal != nullptr ? &temporalRows[std::size_t(thread)] : nullptr;
+        std::vector<const float*> taps(std::size_t(tapSize), nullptr);
+        const float* temporalTaps[3] = {nullptr, nullptr, nullptr};
+        // Contiguous blocks of rows per thread, so each thread's ring reuses its rows.
+#pragma omp for schedule(static)
+        for (int y = 0; y < height; ++y) {
+            for (int j = 0; j < tapSize; ++j) {
+                const int tapY = y + (j - radius) * dilation;
+                taps[std::size_t(j)] = tapY >= 0 && tapY < height ? spatial.row(tapY) : nullptr;
+            }
+            // After the neighbours: the centre row must stay in its slot (it is one of them).
+            RowInputs in{};
+            in.width = width;
+            in.features = features;
+            in.stride = spatial.stride();
+            in.centre = taps[std::size_t(radius)];
+            in.taps = taps.data();
+            in.tapSize = tapSize;
+            in.dilation = dilation;
+            if (temporalCache != nullptr) {
+                for (int j = 0; j < 3; ++j) {
+                    const int tapY = y + j - 1;
+                    temporalTaps[j] = tapY >= 0 && tapY < height ? temporalCache->row(tapY) : nullptr;
+                }
+                in.temporalStride = temporalCache->stride();
+                in.temporalRows = temporalTaps;
+            }
+            filterRowFunction(in, target.pixel(y, 0));
+        }
+    }
+    if (outputAliasesInput) output = std::move(separate);
+}
+
+}  // namespace
+
+void affinityFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                    FeatureMap& output) {
+    runFilter(radiance, kernel, tapSize, dilation, nullptr, output);
+}
+
+void affinityFilterTemporal(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                            const FeatureMap& temporalBandwidth, const FeatureMap& warpedOutput,
+                            const FeatureMap& warpedFeatures, const FeatureMap& warpedValid, FeatureMap& output) {
+    const TemporalInputs temporal{&temporalBandwidth, &warpedOutput, &warpedFeatures, &warpedValid};
+    runFilter(radiance, kernel, tapSize, dilation, &temporal, output);
+}
+
+void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& output) {
+    if (&output == &previous) throw Error("warpBilinear: the output must not be the input");
+    const int height = previous.height(), width = previous.width(), channels = previous.channels();
+    output.resize(height, width, channels);
+    if (output.empty()) return;
+    if (motion == nullptr) throw Error("warpBilinear: no motion vectors");
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            const float* m = motion + 2 * (std::size_t(y) * width + x);
+            // Clamping the position to one pixel beyond the border first keeps the integer
+            // conversion defined for any motion (even NaN or huge values) and changes nothing:
+            // both taps clamp to the border pixel there anyway.
+            float sx = float(x) + m[0], sy = float(y) + m[1];
+            sx = sx >= -1.0f ? (sx <= float(width) ? sx : float(width)) : -1.0f;
+            sy = sy >= -1.0f ? (sy <= float(height) ? sy : float(height)) : -1.0f;
+            const float floorX = std::floor(sx), floorY = std::floor(sy);
+            const float fx = sx - floorX, fy = sy - floorY;
+            const int x0 = int(floorX), y0 = int(floorY);
+            const int left = std::clamp(x0, 0, width - 1), right = std::clamp(x0 + 1, 0, width - 1);
+            const int top = std::clamp(y0, 0, height - 1), bottom = std::clamp(y0 + 1, 0, height - 1);
+            const float* p00 = previous.pixel(top, left);
+            const float* p01 = previous.pixel(top, right);
+            const float* p10 = previous.pixel(bottom, left);
+            const float* p11 = previous.pixel(bottom, right);
+            const float w00 = (1 - fx) * (1 - fy), w01 = fx * (1 - fy), w10 = (1 - fx) * fy, w11 = fx * fy;
+            float* out = output.pixel(y, x);
+#pragma omp simd
+            for (int c = 0; c < channels; ++c) out[c] = w00 * p00[c] + w01 * p01[c] + w10 * p10[c] + w11 * p11[c];
+        }
+    }
+}
+
+}  // namespace affinity

@@ -1,0 +1,490 @@
+// The affinity filter (docs/MODEL.md sections 3, 6, 7): agreement with a naive double
+// precision reference, the properties the maths implies (box filter, centre exclusion,
+// constant radiance, no temporal contribution without valid history), bilinear warping, and
+// results that do not depend on the thread count.
+#include <gtest/gtest.h>
+#include <omp.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <cstring>
+#include <random>
+#include <vector>
+
+#include "affinity/error.h"
+#include "affinity_filter.h"
+#include "fast_exp.h"
+
+namespace affinity {
+namespace {
+
+constexpr double kEpsilon = 1e-8;
+
+FeatureMap randomMap(int height, int width, int channels, float low, float high, std::mt19937& rng) {
+    FeatureMap map(height, width, channels);
+    std::uniform_real_distribution<float> uniform(low, high);
+    for (std::size_t i = 0; i < map.size(); ++i) map.data()[i] = uniform(rng);
+    return map;
+}
+
+FeatureMap constantMap(int height, int width, int channels, float value) {
+    FeatureMap map(height, width, channels);
+    map.fill(value);
+    return map;
+}
+
+bool bitwiseEqual(const FeatureMap& a, const FeatureMap& b) {
+    return a.height() == b.height() && a.width() == b.width() && a.channels() == b.channels() &&
+           std::memcmp(a.data(), b.data(), a.size() * sizeof(float)) == 0;
+}
+
+// All inputs of one filter call.
+struct Scene {
+    FeatureMap radiance, features, bandwidth, centre;
+    FeatureMap temporalBandwidth, warpedOutput, warpedFeatures, warpedValid;
+    KernelParams kernel() const { return {&features, &bandwidth, &centre}; }
+};
+
+// Features in [0, 1], a in [-2, 2] (so a^2 ||df||^2 stays in the range where weights are not
+// negligible), c in [0.05, 1], radiance in [0.01, 10]; validity 0, 1 or fractional.
+Scene randomScene(int height, int width, int features, std::mt19937& rng) {
+    Scene s;
+    s.radiance = randomMap(height, width, 3, 0.01f, 10.0f, rng);
+    s.features = randomMap(height, width, features, 0.0f, 1.0f, rng);
+    s.bandwidth = randomMap(height, width, 1, -2.0f, 2.0f, rng);
+    s.centre = randomMap(height, width, 1, 0.05f, 1.0f, rng);
+    s.temporalBandwidth = randomMap(height, width, 1, -2.0f, 2.0f, rng);
+    s.warpedOutput = randomMap(height, width, 3, 0.01f, 10.0f, rng);
+    s.warpedFeatures = randomMap(height, width, features, 0.0f, 1.0f, rng);
+    s.warpedValid = randomMap(height, width, 1, 0.0f, 1.0f, rng);
+    for (std::size_t i = 0; i < s.warpedValid.size(); ++i) {
+        float& v = s.warpedValid.data()[i];
+        v = v < 0.4f ? 0.0f : (v < 0.8f ? 1.0f : v);
+    }
+    return s;
+}
+
+double squaredDistance(const FeatureMap& a, int ay, int ax, const FeatureMap& b, int by, int bx) {
+    double sum = 0;
+    for (int c = 0; c < a.channels(); ++c) {
+        const double d = double(a.pixel(ay, ax)[c]) - double(b.pixel(by, bx)[c]);
+        sum += d * d;
+    }
+    return sum;
+}
+
+// docs/MODEL.md sections 6 and 7, literally, in double precision.
+FeatureMap reference(const Scene& s, int tapSize, int dilation, bool temporal) {
+    const int height = s.radiance.height(), width = s.radiance.width(), radius = tapSize / 2;
+    FeatureMap out(height, width, 3);
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            double sum[3] = {0, 0, 0}, weights = 0;
+            const double a = s.bandwidth.pixel(y, x)[0];
+            for (int j = -radius; j <= radius; ++j) {
+                for (int i = -radius; i <= radius; ++i) {
+                    const int qx = x + dilation * i, qy = y + dilation * j;
+                    if (qx < 0 || qy < 0 || qx >= width || qy >= height) continue;
+                    const double w = (i == 0 && j == 0)
+                                         ? double(s.centre.pixel(y, x)[0])
+                                         : std::exp(-a * a * squaredDistance(s.features, y, x, s.features, qy, qx));
+                    for (int c = 0; c < 3; ++c) sum[c] += w * s.radiance.pixel(qy, qx)[c];
+                    weights += w;
+                }
+            }
+            if (temporal) {
+                const double b = s.temporalBandwidth.pixel(y, x)[0];
+                for (int j = -1; j <= 1; ++j) {
+                    for (int i = -1; i <= 1; ++i) {
+                        const int qx = x + i, qy = y + j;
+                        if (qx < 0 || qy < 0 || qx >= width || qy >= height) continue;
+                        const double w = s.warpedValid.pixel(qy, qx)[0] *
+                                         std::exp(-b * b * squaredDistance(s.features, y, x, s.warpedFeatures, qy, qx));
+                        for (int c = 0; c < 3; ++c) sum[c] += w * s.warpedOutput.pixel(qy, qx)[c];
+                        weights += w;
+                    }
+                }
+            }
+            for (int c = 0; c < 3; ++c) out.pixel(y, x)[c] = float(sum[c] / (kEpsilon + weights));
+        }
+    }
+    return out;
+}
+
+FeatureMap run(const Scene& s, int tapSize, int dilation, bool temporal) {
+    FeatureMap out;
+    if (temporal) {
+        affinityFilterTemporal(s.radiance, s.kernel(), tapSize, dilation, s.temporalBandwidth, s.warpedOutput,
+                               s.warpedFeatures, s.warpedValid, out);
+    } else {
+        affinityFilter(s.radiance, s.kernel(), tapSize, dilation, out);
+    }
+    return out;
+}
+
+double maxRelativeDifference(const FeatureMap& actual, const FeatureMap& expected) {
+    EXPECT_EQ(actual.height(), expected.height());
+    EXPECT_EQ(actual.width(), expected.width());
+    EXPECT_EQ(actual.channels(), expected.channels());
+    double worst = 0;
+    for (std::size_t i = 0; i < expected.size(); ++i) {
+        const double e = expected.data()[i], a = actual.data()[i];
+        const double difference = std::abs(a - e) / std::max(std::abs(e), 1e-6);
+        worst = std::isnan(a) ? INFINITY : std::max(worst, difference);
+    }
+    return worst;
+}
+
+struct Size {
+    int height, width;
+};
+const Size kSizes[] = {{1, 1}, {7, 13}, {64, 48}};
+
+TEST(FastExp, MaxRelativeErrorOnTheUsedRange) {
+    double worst = 0, worstAt = 0;
+    const int count = 2000000;
+    for (int k = 0; k < count; k += 8) {
+        Vec8f x;
+        for (int l = 0; l < 8; ++l) x[l] = -87.0f * float(k + l) / float(count);
+        const Vec8f y = fastExpNonPositive(x);
+        for (int l = 0; l < 8; ++l) {
+            const double exact = std::exp(double(x[l]));
+            const double error = std::abs(double(y[l]) - exact) / exact;
+            if (error > worst) worst = error, worstAt = x[l];
+        }
+    }
+    std::printf("fastExpNonPositive: max relative error %.3g at x = %.6g over [-87, 0]\n", worst, worstAt);
+    EXPECT_LT(worst, 1e-6);
+    EXPECT_EQ(fastExpNonPositive(broadcast8(0.0f))[0], 1.0f);
+    EXPECT_EQ(fastExpNonPositive(broadcast8(-0.0f))[0], 1.0f);
+    // Below the range the weight is exactly zero (never a denormal number).
+    EXPECT_EQ(fastExpNonPositive(broadcast8(-87.5f))[0], 0.0f);
+    EXPECT_EQ(fastExpNonPositive(broadcast8(-1e30f))[0], 0.0f);
+    EXPECT_EQ(fastExpNonPositive(broadcast8(-INFINITY))[0], 0.0f);
+}
+
+TEST(AffinityFilter, MatchesDoubleReference) {
+    std::mt19937 rng(1);
+    for (const Size size : kSizes) {
+        for (const int tapSize : {3, 5, 7}) {
+            for (const int dilation : {1, 2, 4}) {
+                const Scene s = randomScene(size.height, size.width, 8, rng);
+                const double difference = maxRelativeDifference(run(s, tapSize, dilation, false),
+                                                                reference(s, tapSize, dilation, false));
+                EXPECT_LT(difference, 1e-5) << size.height << "x" << size.width << " T=" << tapSize
+                                            << " d=" << dilation;
+            }
+        }
+    }
+}
+
+TEST(AffinityFilter, TemporalMatchesDoubleReference) {
+    std::mt19937 rng(2);
+    for (const Size size : kSizes) {
+        for (const int tapSize : {3, 5, 7}) {
+            for (const int dilation : {1, 2, 4}) {
+                const Scene s = randomScene(size.height, size.width, 8, rng);
+                const double difference =
+                    maxRelativeDifference(run(s, tapSize, dilation, true), reference(s, tapSize, dilation, true));
+                EXPECT_LT(difference, 1e-5) << size.height << "x" << size.width << " T=" << tapSize
+                                            << " d=" << dilation;
+            }
+        }
+    }
+}
+
+TEST(AffinityFilter, EveryFeatureCountMatchesReference) {
+    // 1..16 have specialised kernels, 17 and 24 take the generic one; T = 1 has no spatial
+    // neighbours at all.
+    std::mt19937 rng(3);
+    for (const int features : {1, 2, 3, 5, 8, 12, 16, 17, 24}) {
+        for (const bool temporal : {false, true}) {
+            for (const int tapSize : {1, 5}) {
+                Scene s = randomScene(19, 23, features, rng);
+                // Keep a^2 ||df||^2 moderate however many features there are.
+                for (std::size_t i = 0; i < s.bandwidth.size(); ++i) s.bandwidth.data()[i] /= std::sqrt(float(features));
+                const double difference =
+                    maxRelativeDifference(run(s, tapSize, 2, temporal), reference(s, tapSize, 2, temporal));
+                EXPECT_LT(difference, 1e-5) << "F=" << features << " temporal=" << temporal << " T=" << tapSize;
+            }
+        }
+    }
+}
+
+TEST(AffinityFilter, ZeroBandwidthAndUnitCentreIsAnExactBoxFilter) {
+    std::mt19937 rng(4);
+    std::uniform_int_distribution<int> integers(0, 100);
+    for (const Size size : kSizes) {
+        for (const int tapSize : {3, 5, 7}) {
+            for (const int dilation : {1, 2, 4}) {
+                Scene s = randomScene(size.height, size.width, 8, rng);
+                // Integer radiance: every float sum is exact, so the mean is the correctly
+                // rounded quotient.
+                for (std::size_t i = 0; i < s.radiance.size(); ++i) s.radiance.data()[i] = float(integers(rng));
+                s.bandwidth.fill(0.0f);
+                s.centre.fill(1.0f);
+                const FeatureMap out = run(s, tapSize, dilation, false);
+                const int radius = tapSize / 2;
+                for (int y = 0; y < size.height; ++y) {
+                    for (int x = 0; x < size.width; ++x) {
+                        for (int c = 0; c < 3; ++c) {
+                            double sum = 0;
+                            int count = 0;
+                            for (int j = -radius; j <= radius; ++j) {
+                                for (int i = -radius; i <= radius; ++i) {
+                                    const int qx = x + dilation * i, qy = y + dilation * j;
+                                    if (qx < 0 || qy < 0 || qx >= size.width || qy >= size.height) continue;
+                                    sum += s.radiance.pixel(qy, qx)[c];
+                                    ++count;
+                                }
+                            }
+                            ASSERT_EQ(out.pixel(y, x)[c], float(sum / count))
+                                << "pixel " << x << "," << y << " T=" << tapSize << " d=" << dilation;
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+TEST(AffinityFilter, ZeroCentreWeightGivesTheNeighboursWeightedValue) {
+    // The centre pixel's features are far from its neighbours' (weights 1e-4 .. 1e-2): with
+    // c = 0 the result is the neighbours' weighted mean, not the centre's own radiance.
+    std::mt19937 rng(5);
+    Scene s = randomScene(5, 5, 8, rng);
+    s.centre.fill(0.0f);
+    s.bandwidth.fill(3.0f);  // a^2 = 9
+    for (int y = 0; y < 5; ++y) {
+        for (int x = 0; x < 5; ++x) {
+            for (int c = 0; c < 8; ++c) s.features.pixel(y, x)[c] = 0.0f;
+        }
+    }
+    // ||df||^2 between 0.5 and 1: exp(-9 * ||df||^2) between 1.2e-4 and 1.1e-2.
+    std::uniform_real_distribution<float> spread(0.25f, 0.35f);
+    for (int c = 0; c < 8; ++c) s.features.pixel(2, 2)[c] = spread(rng);
+    for (int c = 0; c < 3; ++c) s.radiance.pixel(2, 2)[c] = 1000.0f;
+    const FeatureMap out = run(s, 5, 1, false);
+    double sum[3] = {0, 0, 0}, weights = 0;
+    for (int y = 0; y < 5; ++y) {
+        for (int x = 0; x < 5; ++x) {
+            if (x == 2 && y == 2) continue;
+            const double w = std::exp(-9.0 * squaredDistance(s.features, 2, 2, s.features, y, x));
+            for (int c = 0; c < 3; ++c) sum[c] += w * s.radiance.pixel(y, x)[c];
+            weights += w;
+        }
+    }
+    ASSERT_GT(weights, 1e-3);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_NEAR(out.pixel(2, 2)[c], sum[c] / weights, 1e-4 * sum[c] / weights);
+        EXPECT_LT(out.pixel(2, 2)[c], 10.0f);  // nothing of the centre's 1000
+    }
+}
+
+TEST(AffinityFilter, ZeroCentreWeightRemovesAnIsolatedFirefly) {
+    Scene s;
+    s.radiance = constantMap(9, 9, 3, 1.0f);
+    for (int c = 0; c < 3; ++c) s.radiance.pixel(4, 4)[c] = 1000.0f;
+    s.features = constantMap(9, 9, 8, 0.5f);
+    s.bandwidth = constantMap(9, 9, 1, 1.0f);
+    s.centre = constantMap(9, 9, 1, 1.0f);
+    s.centre.pixel(4, 4)[0] = 0.0f;
+    const FeatureMap out = run(s, 5, 1, false);
+    for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(out.pixel(4, 4)[c], 1.0f);
+    // With the centre kept the firefly survives, spread over its 25 taps.
+    s.centre.fill(1.0f);
+    const FeatureMap kept = run(s, 5, 1, false);
+    EXPECT_NEAR(kept.pixel(4, 4)[0], (1000.0f + 24.0f) / 25.0f, 1e-3f);
+}
+
+TEST(AffinityFilter, ConstantRadianceStaysConstant) {
+    std::mt19937 rng(6);
+    const float levels[3] = {0.25f, 3.0f, 1234.5f};
+    for (const bool temporal : {false, true}) {
+        for (const int dilation : {1, 4}) {
+            Scene s = randomScene(31, 29, 8, rng);
+            s.bandwidth = randomMap(31, 29, 1, -50.0f, 50.0f, rng);  // any bandwidth, huge included
+            s.temporalBandwidth = randomMap(31, 29, 1, -50.0f, 50.0f, rng);
+            s.features = randomMap(31, 29, 8, -10.0f, 10.0f, rng);
+            for (int y = 0; y < 31; ++y) {
+                for (int x = 0; x < 29; ++x) {
+                    for (int c = 0; c < 3; ++c) {
+                        s.radiance.pixel(y, x)[c] = levels[c];
+                        s.warpedOutput.pixel(y, x)[c] = levels[c];
+                    }
+                }
+            }
+            const FeatureMap out = run(s, 5, dilation, temporal);
+            for (int y = 0; y < 31; ++y) {
+                for (int x = 0; x < 29; ++x) {
+                    for (int c = 0; c < 3; ++c) {
+                        ASSERT_NEAR(out.pixel(y, x)[c], levels[c], 1e-5 * levels[c]) << x << "," << y;
+                    }
+                }
+            }
+        }
+    }
+}
+
+TEST(AffinityFilter, TemporalWithoutValidHistoryEqualsSpatial) {
+    std::mt19937 rng(7);
+    for (const Size size : kSizes) {
+        for (const int tapSize : {3, 5}) {
+            Scene s = randomScene(size.height, size.width, 8, rng);
+            s.warpedValid.fill(0.0f);
+            EXPECT_TRUE(bitwiseEqual(run(s, tapSize, 2, true), run(s, tapSize, 2, false)))
+                << size.height << "x" << size.width;
+        }
+    }
+}
+
+TEST(AffinityFilter, ResultsDoNotDependOnTheThreadCount) {
+    std::mt19937 rng(8);
+    const Scene s = randomScene(97, 75, 8, rng);
+    const int before = omp_get_max_threads();
+    omp_set_num_threads(1);
+    const FeatureMap spatialOne = run(s, 5, 2, false), temporalOne = run(s, 7, 4, true);
+    omp_set_num_threads(2);
+    const FeatureMap spatialTwo = run(s, 5, 2, false), temporalTwo = run(s, 7, 4, true);
+    omp_set_num_threads(3);
+    const FeatureMap spatialThree = run(s, 5, 2, false);
+    omp_set_num_threads(before);
+    EXPECT_TRUE(bitwiseEqual(spatialOne, spatialTwo));
+    EXPECT_TRUE(bitwiseEqual(spatialOne, spatialThree));
+    EXPECT_TRUE(bitwiseEqual(temporalOne, temporalTwo));
+}
+
+TEST(AffinityFilter, OutputMayBeTheRadianceBuffer) {
+    std::mt19937 rng(9);
+    Scene s = randomScene(20, 30, 8, rng);
+    const FeatureMap separate = run(s, 5, 2, false);
+    affinityFilter(s.radiance, s.kernel(), 5, 2, s.radiance);
+    EXPECT_TRUE(bitwiseEqual(s.radiance, separate));
+}
+
+TEST(AffinityFilter, EmptyImage) {
+    Scene s;
+    s.radiance = FeatureMap(0, 0, 3);
+    s.features = FeatureMap(0, 0, 8);
+    s.bandwidth = FeatureMap(0, 0, 1);
+    s.centre = FeatureMap(0, 0, 1);
+    FeatureMap out;
+    affinityFilter(s.radiance, s.kernel(), 5, 1, out);
+    EXPECT_TRUE(out.empty());
+}
+
+TEST(AffinityFilter, RejectsInconsistentInputs) {
+    std::mt19937 rng(10);
+    Scene s = randomScene(8, 9, 8, rng);
+    FeatureMap out;
+    EXPECT_THROW(affinityFilter(s.radiance, s.kernel(), 4, 1, out), Error);
+    EXPECT_THROW(affinityFilter(s.radiance, s.kernel(), 5, 0, out), Error);
+    const FeatureMap wrongSize = randomMap(8, 10, 1, 0, 1, rng);
+    EXPECT_THROW(affinityFilter(s.radiance, {&s.features, &wrongSize, &s.centre}, 5, 1, out), Error);
+    const FeatureMap twoChannels = randomMap(8, 9, 2, 0, 1, rng);
+    EXPECT_THROW(affinityFilter(twoChannels, s.kernel(), 5, 1, out), Error);
+    const FeatureMap otherFeatures = randomMap(8, 9, 7, 0, 1, rng);
+    EXPECT_THROW(affinityFilterTemporal(s.radiance, s.kernel(), 5, 1, s.temporalBandwidth, s.warpedOutput,
+                                        otherFeatures, s.warpedValid, out),
+                 Error);
+}
+
+// Warping.
+
+std::vector<float> uniformMotion(int height, int width, float mx, float my) {
+    std::vector<float> motion(std::size_t(height) * width * 2);
+    for (std::size_t i = 0; i < motion.size(); i += 2) {
+        motion[i] = mx;
+        motion[i + 1] = my;
+    }
+    return motion;
+}
+
+TEST(WarpBilinear, ZeroMotionIsTheIdentity) {
+    std::mt19937 rng(11);
+    const FeatureMap previous = randomMap(13, 17, 5, -3.0f, 3.0f, rng);
+    FeatureMap out;
+    warpBilinear(previous, uniformMotion(13, 17, 0, 0).data(), out);
+    EXPECT_TRUE(bitwiseEqual(out, previous));
+}
+
+TEST(WarpBilinear, IntegerMotionShiftsWithBorderClamping) {
+    std::mt19937 rng(12);
+    const FeatureMap previous = randomMap(11, 14, 3, -3.0f, 3.0f, rng);
+    for (const auto& [mx, my] : std::vector<std::pair<int, int>>{{2, 0}, {0, -3}, {-5, 4}, {20, -20}}) {
+        FeatureMap out;
+        warpBilinear(previous, uniformMotion(11, 14, float(mx), float(my)).data(), out);
+        for (int y = 0; y < 11; ++y) {
+            for (int x = 0; x < 14; ++x) {
+                const int sx = std::clamp(x + mx, 0, 13), sy = std::clamp(y + my, 0, 10);
+                for (int c = 0; c < 3; ++c) {
+                    ASSERT_EQ(out.pixel(y, x)[c], previous.pixel(sy, sx)[c]) << mx << "," << my << " at " << x << "," << y;
+                }
+            }
+        }
+    }
+}
+
+TEST(WarpBilinear, LinearRampIsReproducedExactly) {
+    // v = 2x + 3y + 1 with dyadic motion: every bilinear product and sum is exact in float.
+    const int height = 9, width = 12;
+    FeatureMap previous(height, width, 2);
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            previous.pixel(y, x)[0] = float(2 * x + 3 * y + 1);
+            previous.pixel(y, x)[1] = float(-x + 5 * y);
+        }
+    }
+    std::vector<float> motion(std::size_t(height) * width * 2);
+    const float fractions[] = {0.25f, -0.5f, 0.75f, 1.125f, -2.375f, 0.0f};
+    for (std::size_t i = 0; i < motion.size(); ++i) motion[i] = fractions[i % 6];
+    FeatureMap out;
+    warpBilinear(previous, motion.data(), out);
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            const float* m = motion.data() + 2 * (std::size_t(y) * width + x);
+            const float sx = float(x) + m[0], sy = float(y) + m[1];
+            if (sx < 0 || sy < 0 || sx > float(width - 1) || sy > float(height - 1)) continue;
+            EXPECT_EQ(out.pixel(y, x)[0], 2 * sx + 3 * sy + 1) << x << "," << y;
+            EXPECT_EQ(out.pixel(y, x)[1], -sx + 5 * sy) << x << "," << y;
+        }
+    }
+}
+
+TEST(WarpBilinear, ClampsTheContinuousPositionAtTheBorder) {
+    FeatureMap previous(2, 3, 1);
+    const float values[6] = {1, 2, 4, 8, 16, 32};
+    std::memcpy(previous.data(), values, sizeof values);
+    FeatureMap out;
+    // From pixel (0, 0): half a pixel left of the image reads the border column only.
+    warpBilinear(previous, uniformMotion(2, 3, -0.5f, 0.5f).data(), out);
+    EXPECT_EQ(out.pixel(0, 0)[0], (1.0f + 8.0f) / 2);
+    // From pixel (2, 1): beyond the bottom right corner reads the corner.
+    warpBilinear(previous, uniformMotion(2, 3, 0.75f, 0.25f).data(), out);
+    EXPECT_EQ(out.pixel(1, 2)[0], 32.0f);
+    // Non-finite and huge motion stays defined and clamps.
+    std::vector<float> motion = uniformMotion(2, 3, NAN, INFINITY);
+    motion[2] = -1e30f;
+    warpBilinear(previous, motion.data(), out);
+    for (std::size_t i = 0; i < out.size(); ++i) EXPECT_TRUE(std::isfinite(out.data()[i]));
+}
+
+TEST(WarpBilinear, ResultsDoNotDependOnTheThreadCount) {
+    std::mt19937 rng(13);
+    const FeatureMap previous = randomMap(57, 41, 8, -3.0f, 3.0f, rng);
+    std::vector<float> motion(std::size_t(57) * 41 * 2);
+    std::uniform_real_distribution<float> uniform(-6.0f, 6.0f);
+    for (float& m : motion) m = uniform(rng);
+    const int before = omp_get_max_threads();
+    FeatureMap one, two;
+    omp_set_num_threads(1);
+    warpBilinear(previous, motion.data(), one);
+    omp_set_num_threads(2);
+    warpBilinear(previous, motion.data(), two);
+    omp_set_num_threads(before);
+    EXPECT_TRUE(bitwiseEqual(one, two));
+}
+
+}  // namespace
+}  // namespace affinity
