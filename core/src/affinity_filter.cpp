@@ -20,8 +20,8 @@ constexpr int kLanes = 8;
 constexpr int kStripVectors = 8;
 constexpr int kStripPixels = kStripVectors * kLanes;
 constexpr int kRadianceChannels = 3;
-// Feature counts with a specialised kernel (centre features held in registers); others use
-// the generic one.
+// Feature counts with a kernel specialised at compile time (feature loop fully unrolled);
+// others use the generic one.
 constexpr int kMaxSpecialisedFeatures = 16;
 
 Vec8f load8(const float* p) {
@@ -32,7 +32,8 @@ Vec8f load8(const float* p) {
 
 // Planar, zero-padded copies of image rows. The inputs are NHWC (a pixel's channels adjacent);
 // the kernels want each channel's row contiguous so that eight neighbouring pixels are one
-// vector load (indexing NHWC per channel makes the compiler gather, about 4x slower). Each row
+// vector load (indexing NHWC per channel makes the compiler gather: 100 ms against 22 ms per
+// pass in shared/design/FACTS.md). Each row
 // is transposed once per thread into a ring of slots covering the rows a kernel reaches.
 class PlanarRows {
 public:
@@ -77,7 +78,7 @@ private:
     }
 
     // Eight channels: eight pixels at a time through an 8x8 register transpose (unpack pairs,
-    // then pairs of pairs, then halves), twice as fast as element-wise copies.
+    // then pairs of pairs, then halves): 24 shuffles instead of 64 scalar loads and stores.
     void transposeEights(const float* pixels, float* planes) const {
         int x = 0;
         for (; x + kLanes <= width_; x += kLanes) {
@@ -107,7 +108,7 @@ private:
     }
 
     // Pixel by pixel: contiguous reads, and with the channel count known at compile time the
-    // compiler turns each pixel into a few vector shuffles.
+    // inner loop unrolls.
     template <int kChannels>
     void deinterleave(const float* pixels, float* planes, int runtimeChannels = 0) const {
         const int channels = kChannels > 0 ? kChannels : runtimeChannels;
@@ -164,8 +165,10 @@ struct StripSums {
     Vec8f r[kStripVectors], g[kStripVectors], b[kStripVectors], weight[kStripVectors];
 };
 
-// Adds the taps of one neighbour row at horizontal offset `offset` (in pixels).
-// kCheckColumns: some taps may fall outside the image horizontally and are masked out.
+// Adds one tap, the neighbour at the same offset for every pixel of the strip: `neighbour`
+// points at the features of the first pixel's neighbour, `column` is that neighbour's image
+// column, `radiance` its radiance, `validity` (temporal taps only) scales each weight.
+// kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
 template <int kFeatures, bool kCheckColumns>
 void addTaps(StripSums& sums, const Vec8f* negativeBandwidthSquared, const float* centre, std::size_t centreStride,
              const float* neighbour, std::size_t neighbourStride, const float* radiance, const float* validity,

@@ -5,6 +5,7 @@
 #include <cerrno>
 #include <cstdio>
 #include <cstring>
+#include <filesystem>
 #include <limits>
 #include <string_view>
 
@@ -235,6 +236,10 @@ Weights Weights::fromMemory(const void* bytes, std::size_t size, const std::stri
 
 Weights Weights::fromFile(const std::string& path) {
     const std::string context = "cannot load weights '" + path + "': ";
+    std::error_code error;
+    const auto status = std::filesystem::status(path, error);
+    if (!std::filesystem::exists(status)) throw Error(context + "the file does not exist");
+    if (!std::filesystem::is_regular_file(status)) throw Error(context + "not a regular file");
     std::unique_ptr<std::FILE, int (*)(std::FILE*)> file(std::fopen(path.c_str(), "rb"), &std::fclose);
     if (!file) throw Error(context + "cannot open: " + std::strerror(errno));
     if (std::fseek(file.get(), 0, SEEK_END) != 0) throw Error(context + "cannot seek: " + std::strerror(errno));

@@ -228,7 +228,9 @@ TEST(Weights, FileRoundTripIsAtomicAndExact) {
 
 TEST(Weights, MissingFileNamesThePath) {
     const std::string path = "/nonexistent-folder/model.affw";
-    expectErrorMentioning([&] { Weights::fromFile(path); }, {path, "cannot open"});
+    expectErrorMentioning([&] { Weights::fromFile(path); }, {path, "does not exist"});
+    const std::string folder = fs::temp_directory_path().string();
+    expectErrorMentioning([&] { Weights::fromFile(folder); }, {folder, "not a regular file"});
 }
 
 TEST(Weights, NullBufferIsRejected) {
