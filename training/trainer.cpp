@@ -10,6 +10,7 @@
 #include <torch/utils.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -19,6 +20,7 @@
 #include <numeric>
 #include <random>
 #include <sstream>
+#include <thread>
 
 #include "affinity/error.h"
 #include "affinity/features.h"
@@ -93,6 +95,31 @@ Sequence loadSequence(const std::string& folder) {
     sequence.valid = torch::stack(valid);
     sequence.reference = torch::stack(reference);
     return sequence;
+}
+
+// Loads sequences on several threads (frame decoding dominates); the first error is rethrown.
+std::vector<Sequence> loadSequences(const std::vector<std::string>& folders) {
+    std::vector<Sequence> sequences(folders.size());
+    std::vector<std::string> errors(folders.size());
+    std::atomic<std::size_t> next{0};
+    const unsigned workers = std::max(1u, std::min(8u, std::thread::hardware_concurrency()));
+    std::vector<std::thread> threads;
+    for (unsigned w = 0; w < workers; ++w) {
+        threads.emplace_back([&] {
+            for (std::size_t i = next++; i < folders.size(); i = next++) {
+                try {
+                    sequences[i] = loadSequence(folders[i]);
+                } catch (const std::exception& error) {
+                    errors[i] = error.what();
+                }
+            }
+        });
+    }
+    for (std::thread& thread : threads) thread.join();
+    for (const std::string& error : errors) {
+        if (!error.empty()) throw Error(error);
+    }
+    return sequences;
 }
 
 // A batch: per frame, the model's inputs and the reference.
@@ -299,13 +326,11 @@ TrainSummary runTraining(const TrainOptions& options) {
         trainFolders.resize(std::size_t(options.maxSequences));
     }
     if (trainFolders.empty()) throw Error("no training sequences in " + options.trainDir);
-    std::vector<Sequence> train;
-    for (const std::string& folder : trainFolders) train.push_back(loadSequence(folder));
+    std::vector<Sequence> train = loadSequences(trainFolders);
     std::vector<Batch> val;
     std::vector<std::string> valNames;
     if (!options.valDir.empty()) {
-        for (const std::string& folder : sequenceFolders(options.valDir)) {
-            const Sequence sequence = loadSequence(folder);
+        for (const Sequence& sequence : loadSequences(sequenceFolders(options.valDir))) {
             val.push_back(wholeSequence(sequence, options.valSpp, device));
             valNames.push_back(sequence.name);
         }
