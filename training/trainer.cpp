@@ -28,6 +28,7 @@
 #include "affinity/weights.h"
 #include "affinity_model.h"
 #include "model_weights.h"
+#include "train_augment.h"
 #include "train_loss.h"
 
 namespace fs = std::filesystem;
@@ -128,11 +129,6 @@ struct Batch {
     std::vector<torch::Tensor> references;
 };
 
-// One crop of one sequence, augmented, as [T, ...] tensors.
-struct Clip {
-    torch::Tensor samples, motion, valid, reference;
-};
-
 Clip cutClip(const Sequence& sequence, std::int64_t firstFrame, std::int64_t frameCount, std::int64_t y,
              std::int64_t x, std::int64_t size, const std::vector<std::int64_t>& sampleIndices) {
     const torch::Tensor index = torch::tensor(sampleIndices, torch::kLong);
@@ -146,45 +142,6 @@ Clip cutClip(const Sequence& sequence, std::int64_t firstFrame, std::int64_t fra
     clip.valid = sequence.valid.narrow(0, firstFrame, frameCount).narrow(2, y, size).narrow(3, x, size);
     clip.reference = sequence.reference.narrow(0, firstFrame, frameCount).narrow(2, y, size).narrow(3, x, size);
     return clip;
-}
-
-// Transforms of the image plane that keep the physics: transpose, then horizontal and vertical
-// flips (together the 8 rotations and reflections of the square), with the motion vectors
-// transformed alike; and one permutation of the colour channels applied to diffuse, specular,
-// albedo and the reference together. Normals are world-space in the frame files and stay as
-// they are (the transformed image is a view of a mirrored world; the network only compares
-// normals with each other).
-void augment(Clip& clip, std::mt19937_64& rng) {
-    std::uniform_int_distribution<int> bit(0, 1);
-    const bool transpose = bit(rng), flipX = bit(rng), flipY = bit(rng);
-    std::vector<std::int64_t> colours{0, 1, 2};
-    std::shuffle(colours.begin(), colours.end(), rng);
-
-    if (transpose) {
-        clip.samples = clip.samples.transpose(-1, -2);
-        clip.motion = clip.motion.transpose(-1, -2).flip({1});  // (dx, dy) -> (dy, dx)
-        clip.valid = clip.valid.transpose(-1, -2);
-        clip.reference = clip.reference.transpose(-1, -2);
-    }
-    if (flipX || flipY) {
-        std::vector<std::int64_t> dims;
-        if (flipX) dims.push_back(-1);
-        if (flipY) dims.push_back(-2);
-        const torch::Tensor sign = torch::tensor({flipX ? -1.0f : 1.0f, flipY ? -1.0f : 1.0f}).view({1, 2, 1, 1});
-        clip.samples = clip.samples.flip(dims);
-        clip.motion = clip.motion.flip(dims) * sign;
-        clip.valid = clip.valid.flip(dims);
-        clip.reference = clip.reference.flip(dims);
-    }
-    std::vector<std::int64_t> channels(kFeatureCount);
-    std::iota(channels.begin(), channels.end(), 0);
-    for (int c = 0; c < 3; ++c) {
-        channels[std::size_t(channel::kDiffuse + c)] = channel::kDiffuse + colours[std::size_t(c)];
-        channels[std::size_t(channel::kSpecular + c)] = channel::kSpecular + colours[std::size_t(c)];
-        channels[std::size_t(channel::kAlbedo + c)] = channel::kAlbedo + colours[std::size_t(c)];
-    }
-    clip.samples = clip.samples.index_select(2, torch::tensor(channels, torch::kLong));
-    clip.reference = clip.reference.index_select(1, torch::tensor(colours, torch::kLong));
 }
 
 Batch assemble(std::vector<Clip>& clips, const torch::Device& device) {
@@ -230,7 +187,7 @@ Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options
         std::shuffle(indices.begin(), indices.end(), rng);
         indices.resize(std::size_t(batchSpp));
         Clip clip = cutClip(sequence, first, frameCount, y, x, size, indices);
-        if (options.augment) augment(clip, rng);
+        if (options.augment) applyAugmentation(clip, randomAugmentation(rng));
         clips.push_back(std::move(clip));
     }
     return assemble(clips, device);

@@ -12,7 +12,9 @@
 #include "affinity/denoiser.h"
 #include "affinity/frame_io.h"
 #include "affinity/metrics.h"
+#include "affinity_ops.h"
 #include "torch_reference.h"
+#include "train_augment.h"
 #include "train_loss.h"
 #include "trainer.h"
 
@@ -80,6 +82,40 @@ TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
     for (auto& tensor : outputs) check(tensor);
     for (auto& frame : bandwidths)
         for (auto& tensor : frame) check(tensor);
+}
+
+// Augmentation keeps the physics: warping the transformed previous frame with the transformed
+// motion gives the transformed warp, for all 8 rotations / reflections with a colour permutation.
+TEST(TrainingAugmentation, WarpCommutesWithEveryTransform) {
+    torch::manual_seed(9);
+    const std::int64_t size = 9;
+    train::Clip clip{torch::rand({2, 1, 18, size, size}), torch::randn({2, 2, size, size}) * 2.5,
+                     torch::ones({2, 1, size, size}), torch::rand({2, 3, size, size})};
+    const torch::Tensor warped = train::warpBilinear(clip.reference.narrow(0, 0, 1), clip.motion.narrow(0, 1, 1));
+    for (int bits = 0; bits < 8; ++bits) {
+        train::Augmentation augmentation;
+        augmentation.transpose = bits & 1;
+        augmentation.flipX = bits & 2;
+        augmentation.flipY = bits & 4;
+        augmentation.colours = {2, 0, 1};
+        train::Clip transformed = clip;
+        train::applyAugmentation(transformed, augmentation);
+        // The expected image: the original warp result, transformed as frame 1 of a clip.
+        train::Clip expected{clip.samples, clip.motion, clip.valid, torch::cat({clip.reference.narrow(0, 0, 1), warped})};
+        train::applyAugmentation(expected, augmentation);
+        const torch::Tensor actual =
+            train::warpBilinear(transformed.reference.narrow(0, 0, 1).contiguous(),
+                                transformed.motion.narrow(0, 1, 1).contiguous());
+        EXPECT_LT((actual - expected.reference.narrow(0, 1, 1)).abs().max().item<double>(), 1e-5) << "bits " << bits;
+        // Diffuse, specular and albedo follow the reference's colour permutation.
+        for (int c = 0; c < 3; ++c) {
+            for (int base : {channel::kDiffuse, channel::kSpecular, channel::kAlbedo}) {
+                EXPECT_NEAR(transformed.samples.select(2, base + c).sum().item<double>(),
+                            clip.samples.select(2, base + augmentation.colours[std::size_t(c)]).sum().item<double>(),
+                            1e-3);
+            }
+        }
+    }
 }
 
 // About two minutes: render a tiny fixed dataset with the sample renderer, train the tiny
