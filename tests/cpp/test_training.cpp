@@ -118,8 +118,8 @@ TEST(TrainingAugmentation, WarpCommutesWithEveryTransform) {
     }
 }
 
-// About two minutes: render a tiny fixed dataset with the sample renderer, train the tiny
-// preset on it, and require the validation loss to fall well below its starting value; then
+// One to two minutes: render a tiny fixed dataset with the sample renderer, train the tiny
+// preset on it for 80 steps, and require the validation loss to fall well below its starting value; then
 // the exported weights load in the core and match the torch model frame by frame.
 TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     const fs::path root = fs::temp_directory_path() / "affinity_training_smoke";
@@ -142,8 +142,9 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     options.outDir = (root / "run").string();
     options.preset = "tiny";
     options.seed = 1;
-    options.steps = 400;
-    options.maxMinutes = 1.5;
+    options.steps = 80;
+    options.maxMinutes = 4;  // a cap for very slow machines; normally the 80 steps take 40-90 s
+    options.threads = 1;     // no OpenMP spinning against other tests running beside it
     options.batch = 4;
     options.crop = 32;
     options.frames = 4;
@@ -154,7 +155,7 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     std::cout << "smoke training: steps " << summary.lastStep << " in " << summary.seconds << " s, validation loss "
               << summary.initialValLoss << " -> best " << summary.bestValLoss << " (SMAPE " << summary.finalValSmape
               << ", noisy " << summary.finalValNoisySmape << ")\n";
-    ASSERT_GT(summary.lastStep, 20);
+    ASSERT_GE(summary.lastStep, 40);
     ASSERT_GT(summary.initialValLoss, 0);
     EXPECT_LT(summary.bestValLoss, 0.75 * summary.initialValLoss);
     ASSERT_TRUE(fs::exists(summary.bestWeights));
