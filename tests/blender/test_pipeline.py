@@ -206,11 +206,6 @@ def _relative_mse(image: np.ndarray, reference: np.ndarray) -> float:
     return float(np.mean((image - reference) ** 2 / (reference ** 2 + 1e-2)))
 
 
-@pytest.mark.xfail(
-    strict=False,
-    reason="needs the trained model: the built-in model is untrained (or the core is missing "
-    "and the stand-in returns the noisy mean); measured numbers in docs/BLENDER.md",
-)
 def test_denoised_is_closer_to_the_reference_than_the_noisy_mean(run: dict[str, Any]) -> None:
     errors = []
     for result in run["job"].results:
