@@ -209,8 +209,7 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
     noisyRadiance(frame, s.radiance);
 
     // 3. Histories: warped previous state where valid, the current frame elsewhere.
-    const std::vector<float> noHistory(history ? 0 : frame.pixelCount(), 0.0f);
-    const std::vector<float>& valid = history ? frame.valid() : noHistory;
+    const std::vector<float>& valid = frame.valid();  // read only when there is history
     if (history) {
         warpBilinear(s.embeddingHistory, frame.motion().data(), s.warped);
         selectHistory(s.warped, s.embedding, valid, s.historyEmbedding);
