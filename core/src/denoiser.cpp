@@ -3,6 +3,7 @@
 #include "affinity/denoiser.h"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 #include "affinity/error.h"
@@ -98,10 +99,26 @@ void cameraChange(const Matrix4& a, const Matrix4& b, double& degrees, double& d
     distance = std::sqrt(distance);
 }
 
+// Appends the time since the previous mark to a report's stage list.
+class StageClock {
+public:
+    explicit StageClock(DenoiseReport& report) : report_(report) {}
+    void mark(const char* stage) {
+        const auto now = std::chrono::steady_clock::now();
+        report_.stageMilliseconds.emplace_back(stage, std::chrono::duration<double, std::milli>(now - last_).count());
+        last_ = now;
+    }
+
+private:
+    DenoiseReport& report_;
+    std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
+};
+
 }  // namespace
 
 struct Denoiser::State {
     Model model;
+    DenoiserOptions options;
     bool hasHistory = false;
     int width = 0, height = 0;
     Matrix4 worldToCamera{};
@@ -114,16 +131,18 @@ struct Denoiser::State {
     std::vector<FeatureMap> kernelFeatures, kernelBandwidth, kernelCentre;
     FeatureMap temporalBandwidth, lambda, filterA, filterB, warpedOutput, warpedFeatures, validMap;
 
-    explicit State(Model m) : model(std::move(m)) {}
+    State(Model m, DenoiserOptions o) : model(std::move(m)), options(o) {}
     void runUnet(const Network& net);
 };
 
-Denoiser::Denoiser(Model model) : state_(std::make_unique<State>(std::move(model))) {}
+Denoiser::Denoiser(Model model, DenoiserOptions options)
+    : state_(std::make_unique<State>(std::move(model), options)) {}
 Denoiser::~Denoiser() = default;
 Denoiser::Denoiser(Denoiser&&) noexcept = default;
 Denoiser& Denoiser::operator=(Denoiser&&) noexcept = default;
 
 const Model& Denoiser::model() const { return state_->model; }
+const DenoiserOptions& Denoiser::options() const { return state_->options; }
 
 void Denoiser::reset() { state_->hasHistory = false; }
 
@@ -176,6 +195,7 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
     State& s = *state_;
     const Network& net = s.model.network();
     DenoiseReport local;
+    StageClock clock(local);
     const int width = frame.width(), height = frame.height();
     if (width < 1 || height < 1 || frame.spp() < 1) throw Error("denoise: the frame is empty");
     if (frame.samples().size() != frame.pixelCount() * std::size_t(frame.spp()) * kFeatureCount ||
@@ -201,12 +221,14 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
     s.height = height;
     s.worldToCamera = frame.info.worldToCamera;
     s.meanDepth = meanDepth;
+    if (!s.options.useHistory) s.hasHistory = false;
     const bool history = s.hasHistory;
     local.usedHistory = history;
 
     // 1-2. Per-sample embedding averaged per pixel; noisy radiance.
     local.invalidRadiance = net.embedding->apply(frame.samples().data(), height, width, frame.spp(), scale, s.embedding);
     noisyRadiance(frame, s.radiance);
+    clock.mark("embedding");
 
     // 3. Histories: warped previous state where valid, the current frame elsewhere.
     const std::vector<float>& valid = frame.valid();  // read only when there is history
@@ -219,9 +241,11 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
         s.historyEmbedding = s.embedding;
         s.historyRadiance = s.radiance;
     }
+    clock.mark("warp history");
 
     // 4-5. U-Net and per-pixel parameters.
     s.runUnet(net);
+    clock.mark("u-net");
     const int K = net.kernels, F = net.affinityFeatures;
     s.kernelFeatures.resize(K);
     s.kernelBandwidth.resize(K);
@@ -252,17 +276,19 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
     std::swap(s.embeddingHistory, s.warped);
     blend(s.radiance, s.historyRadiance, s.lambda, s.filterA);
     s.radianceHistory = s.filterA;
+    clock.mark("kernel parameters and accumulation");
 
     // 6. Dilated spatial kernels on the accumulated radiance.
     FeatureMap* in = &s.filterA;
     FeatureMap* out = &s.filterB;
-    for (int k = 0; k + 1 < K; ++k) {
+    for (int k = s.options.allKernels ? 0 : K - 1; k + 1 < K; ++k) {
         affinityFilter(*in, {&s.kernelFeatures[k], &s.kernelBandwidth[k], &s.kernelCentre[k]}, net.tapSize, 1 << k, *out);
         std::swap(in, out);
     }
     // 7. The last kernel, with temporal taps on the warped previous output.
     const KernelParams last{&s.kernelFeatures[K - 1], &s.kernelBandwidth[K - 1], &s.kernelCentre[K - 1]};
-    if (history) {
+    clock.mark("spatial kernels");
+    if (history && s.options.temporalKernel) {
         warpBilinear(s.output, frame.motion().data(), s.warpedOutput);
         warpBilinear(s.lastFeatures, frame.motion().data(), s.warpedFeatures);
         s.validMap.resize(height, width, 1);
@@ -275,6 +301,7 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
     std::swap(s.output, *out);
     std::swap(s.lastFeatures, s.kernelFeatures[K - 1]);
     s.hasHistory = true;
+    clock.mark("temporal kernel");
 
     if (report) *report = local;
     return std::vector<float>(s.output.data(), s.output.data() + s.output.size());

@@ -103,16 +103,33 @@ class Denoiser:
     denoised linear RGB radiance as float32 (H, W, 3). Call ``reset()`` at a camera cut; the
     history is also dropped automatically when the frame size changes or the camera jumps.
     The GIL is released while denoising.
+
+    ``ablation`` switches off one part of the trained pipeline, for measuring what it buys:
+    "single_frame" (no history: every frame denoised on its own), "no_temporal_kernel" (the
+    last kernel has no taps into the previous output) or "one_kernel" (only the last, widest
+    kernel filters). None runs the model as trained.
     """
 
-    def __init__(self, model: str | os.PathLike[str] | Model | None = None) -> None:
+    ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel")
+
+    def __init__(
+        self, model: str | os.PathLike[str] | Model | None = None, *, ablation: str | None = None
+    ) -> None:
         if model is None:
             model = Model.built_in()
         elif not isinstance(model, Model):
             model = Model.from_file(os.fspath(model))
-        self._native = _core.Denoiser(model)
+        if ablation is not None and ablation not in self.ABLATIONS:
+            raise ValueError(f"unknown ablation {ablation!r} (known: {', '.join(self.ABLATIONS)})")
+        self.ablation = ablation
+        self._native = _core.Denoiser(
+            model,
+            use_history=ablation != "single_frame",
+            temporal_kernel=ablation != "no_temporal_kernel",
+            all_kernels=ablation != "one_kernel",
+        )
         #: What the last call did: invalid_radiance (NaN/Inf/negative values read as 0),
-        #: used_history, reset_reason.
+        #: used_history, reset_reason, stage_ms (milliseconds per pipeline stage).
         self.last_report: dict[str, Any] = {}
 
     @property

@@ -22,6 +22,9 @@
 namespace py = pybind11;
 
 namespace affinity {
+
+void bindMetrics(py::module_& m);  // metrics_bindings.cpp
+
 namespace {
 
 using FloatArray = py::array_t<float, py::array::c_style>;
@@ -261,6 +264,7 @@ PYBIND11_MODULE(_core, m) {
     m.attr("FEATURE_NAMES") = names;
     m.attr("FEATURE_COUNT") = kFeatureCount;
     m.attr("MAX_SPP") = SampleFrame::kMaxSpp;
+    bindMetrics(m);
 
     m.def(
         "read_frame",
@@ -308,7 +312,11 @@ PYBIND11_MODULE(_core, m) {
         .def("flops_per_pixel", &Model::flopsPerPixel, py::arg("spp"));
 
     py::class_<Denoiser>(m, "Denoiser", "Stateful sequence denoiser (see affinity.Denoiser).")
-        .def(py::init<Model>(), py::arg("model"))
+        .def(py::init([](Model model, bool useHistory, bool temporalKernel, bool allKernels) {
+                 return Denoiser(std::move(model), DenoiserOptions{useHistory, temporalKernel, allKernels});
+             }),
+             py::arg("model"), py::kw_only(), py::arg("use_history") = true, py::arg("temporal_kernel") = true,
+             py::arg("all_kernels") = true)
         .def(
             "denoise",
             [](Denoiser& self, const py::dict& frame) {
@@ -323,6 +331,9 @@ PYBIND11_MODULE(_core, m) {
                 info["invalid_radiance"] = report.invalidRadiance;
                 info["used_history"] = report.usedHistory;
                 info["reset_reason"] = report.resetReason;
+                py::dict stages;
+                for (const auto& [stage, ms] : report.stageMilliseconds) stages[py::str(stage)] = ms;
+                info["stage_ms"] = stages;
                 return py::make_tuple(arrayOwning(std::move(rgb), {native.height(), native.width(), 3}), info);
             },
             py::arg("frame"))

@@ -16,10 +16,10 @@ Model randomModel(unsigned seed = 1, float lambdaBias = 0.0f, float temporalBias
     return Model::fromWeights(test::randomWeights(test::ModelShape{}, seed, lambdaBias, temporalBias));
 }
 
-// A model that cannot see history: lambda = 0, huge temporal bandwidth, and the U-Net's
-// history input channels zeroed.
-Model historyBlindModel(unsigned seed) {
-    auto tensors = test::randomModelTensors(test::ModelShape{}, seed, -1e4f, 1e4f);
+// A model that cannot see history: lambda = 0, the U-Net's history input channels zeroed and
+// (by default) a huge temporal bandwidth, which leaves no weight on the temporal taps.
+Model historyBlindModel(unsigned seed, float temporalBias = 1e4f) {
+    auto tensors = test::randomModelTensors(test::ModelShape{}, seed, -1e4f, temporalBias);
     const int embedding = test::ModelShape{}.embedding.back();
     for (auto& t : tensors)
         if (t.name == "unet.enc0.conv0.weight")
@@ -123,6 +123,70 @@ TEST(Denoiser, LambdaZeroEqualsSingleFrameDenoising) {
     Denoiser sequence(historyBlindModel(2)), single(historyBlindModel(2));
     sequence.denoise(frames[0]);
     EXPECT_LT(maxRelativeDifference(sequence.denoise(frames[1]), single.denoise(frames[1])), 1e-6);
+}
+
+// A random model whose first K - 1 kernels are identities: a huge bandwidth leaves weight only
+// on the centre tap.
+Model identityFirstKernelsModel(unsigned seed) {
+    const test::ModelShape shape;
+    auto tensors = test::randomModelTensors(shape, seed);
+    for (auto& t : tensors)
+        if (t.name == "unet.head.bias")
+            for (int k = 0; k + 1 < shape.kernels; ++k) t.floats[std::size_t(k * (shape.affinityFeatures + 2) + shape.affinityFeatures)] += 1e4f;
+    auto bytes = train::serializeWeights(tensors);
+    return Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "identity-first-kernels model"));
+}
+
+TEST(DenoiserAblation, SingleFrameDenoisesEveryFrameAlone) {
+    auto frames = test::randomSequence(3, 12, 10, 2, 8);
+    Denoiser ablated(randomModel(), DenoiserOptions{.useHistory = false}), fresh(randomModel()), full(randomModel());
+    ablated.denoise(frames[0]);
+    full.denoise(frames[0]);
+    DenoiseReport report;
+    const std::vector<float> out = ablated.denoise(frames[1], &report);
+    EXPECT_EQ(out, fresh.denoise(frames[1]));
+    EXPECT_FALSE(report.usedHistory);
+    EXPECT_GT(maxRelativeDifference(full.denoise(frames[1]), out), 1e-3);  // the option changed something
+}
+
+// Without accumulation, the temporal kernel is the only way history reaches the output: turning
+// it off must give exactly the single-frame result, and leaving it on must not.
+TEST(DenoiserAblation, NoTemporalKernelRemovesTheOnlyHistoryPathOfANonAccumulatingModel) {
+    auto frames = test::randomSequence(2, 12, 10, 2, 9);
+    Denoiser withKernel(historyBlindModel(3, 0.0f)), withoutKernel(historyBlindModel(3, 0.0f), {.temporalKernel = false}),
+        single(historyBlindModel(3, 0.0f));
+    withKernel.denoise(frames[0]);
+    withoutKernel.denoise(frames[0]);
+    const std::vector<float> alone = single.denoise(frames[1]);
+    EXPECT_LT(maxRelativeDifference(withoutKernel.denoise(frames[1]), alone), 1e-6);
+    EXPECT_GT(maxRelativeDifference(withKernel.denoise(frames[1]), alone), 1e-3);
+}
+
+// With the first K - 1 kernels being identities, running only the last kernel changes nothing;
+// on a random model it does.
+TEST(DenoiserAblation, OneKernelSkipsTheDilatedKernelsBeforeTheLast) {
+    auto frames = test::randomSequence(2, 12, 10, 2, 10);
+    for (int t = 0; t < 2; ++t) {
+        Denoiser all(identityFirstKernelsModel(4)), last(identityFirstKernelsModel(4), {.allKernels = false});
+        Denoiser randomAll(randomModel(4)), randomLast(randomModel(4), {.allKernels = false});
+        auto run = [&](Denoiser& denoiser) {  // frame t, after the frames before it
+            for (int i = 0; i < t; ++i) denoiser.denoise(frames[std::size_t(i)]);
+            return denoiser.denoise(frames[std::size_t(t)]);
+        };
+        EXPECT_LT(maxRelativeDifference(run(last), run(all)), 1e-5) << "frame " << t;
+        EXPECT_GT(maxRelativeDifference(run(randomLast), run(randomAll)), 1e-3) << "frame " << t;
+    }
+}
+
+TEST(Denoiser, ReportsTheTimeOfEveryStage) {
+    auto frames = test::randomSequence(2, 12, 10, 2, 11);
+    Denoiser denoiser(randomModel());
+    DenoiseReport report;
+    denoiser.denoise(frames[0], &report);
+    ASSERT_EQ(report.stageMilliseconds.size(), 6u);
+    EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
+    EXPECT_EQ(report.stageMilliseconds.back().first, "temporal kernel");
+    for (const auto& [stage, ms] : report.stageMilliseconds) EXPECT_GE(ms, 0.0) << stage;
 }
 
 TEST(Denoiser, OddSizesWork) {

@@ -84,3 +84,22 @@ def test_the_gil_is_released_while_denoising(sequence: list[dict]) -> None:
     done.set()
     counter.join()
     assert during > 1000  # Python code ran while the native denoiser worked
+
+
+def test_ablations_are_named_and_unknown_ones_refused():
+    model = affinity.Model.built_in()
+    for ablation in affinity.Denoiser.ABLATIONS:
+        assert affinity.Denoiser(model, ablation=ablation).ablation == ablation
+    with pytest.raises(ValueError, match="unknown ablation 'no_unet'"):
+        affinity.Denoiser(model, ablation="no_unet")
+
+
+def test_single_frame_ablation_ignores_history_and_stages_are_timed(sequence: list[dict]) -> None:
+    ablated = affinity.Denoiser(ablation="single_frame")
+    ablated.denoise(sequence[0])
+    second = ablated.denoise(sequence[1])
+    assert not ablated.last_report["used_history"]
+    np.testing.assert_array_equal(second, affinity.Denoiser().denoise(sequence[1]))
+    stages = ablated.last_report["stage_ms"]
+    assert list(stages)[0] == "embedding" and list(stages)[-1] == "temporal kernel"
+    assert all(ms >= 0.0 for ms in stages.values())

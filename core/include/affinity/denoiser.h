@@ -5,6 +5,7 @@
 // use is the same call on a fresh (or reset) denoiser.
 #include <memory>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "affinity/frame.h"
@@ -16,11 +17,21 @@ struct DenoiseReport {
     long long invalidRadiance = 0;  // NaN, Inf or negative radiance values treated as 0
     bool usedHistory = false;       // a previous frame contributed
     std::string resetReason;        // why history was dropped before this frame, if it was
+    // Wall-clock milliseconds per pipeline stage, in pipeline order, for profiling.
+    std::vector<std::pair<std::string, double>> stageMilliseconds;
+};
+
+// Parts of the trained pipeline switched off at inference, for the ablation rows of the
+// benchmark. The defaults run the model as trained.
+struct DenoiserOptions {
+    bool useHistory = true;      // false: every frame denoised on its own (single-frame mode)
+    bool temporalKernel = true;  // false: the last kernel has no taps into the previous output
+    bool allKernels = true;      // false: only the last (widest) kernel filters, K = 1
 };
 
 class Denoiser {
 public:
-    explicit Denoiser(Model model = Model::builtIn());
+    explicit Denoiser(Model model = Model::builtIn(), DenoiserOptions options = {});
     ~Denoiser();
     Denoiser(Denoiser&&) noexcept;
     Denoiser& operator=(Denoiser&&) noexcept;
@@ -31,6 +42,7 @@ public:
     void reset();
 
     const Model& model() const;
+    const DenoiserOptions& options() const;
 
 private:
     struct State;
