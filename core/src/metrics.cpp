@@ -1,7 +1,11 @@
 #include "affinity/metrics.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
+
+#include "affinity_filter.h"
+#include "feature_map.h"
 
 namespace affinity {
 
@@ -30,6 +34,38 @@ double tonemappedPsnr(const float* image, const float* reference, std::size_t n)
     }
     if (n == 0 || sum == 0.0) return std::numeric_limits<double>::infinity();
     return -10.0 * std::log10(sum / double(n));
+}
+
+double temporalError(const float* output, const float* previousOutput, const float* reference,
+                     const float* previousReference, const float* motion, const float* valid, int width,
+                     int height) {
+    constexpr double kNoPixel = std::numeric_limits<double>::quiet_NaN();
+    if (width <= 0 || height <= 0) return kNoPixel;
+    // The warp is linear, so W O - W R = W (O - R): one warp of the previous frame's error.
+    FeatureMap previousError(height, width, 3);
+    for (std::size_t i = 0; i < previousError.size(); ++i)
+        previousError.data()[i] = previousOutput[i] - previousReference[i];
+    FeatureMap warpedError;
+    warpBilinear(previousError, motion, warpedError);
+
+    double sum = 0.0;
+    std::size_t count = 0;
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
+            const float targetX = float(x) + motion[2 * p], targetY = float(y) + motion[2 * p + 1];
+            const bool inside = targetX >= 0.0f && targetX <= float(width - 1) && targetY >= 0.0f &&
+                                targetY <= float(height - 1);  // false for NaN motion too
+            if (!(valid[p] >= 0.5f) || !inside) continue;
+            const float* warped = warpedError.pixel(y, x);
+            for (int c = 0; c < 3; ++c) {
+                const double error = double(output[3 * p + c]) - reference[3 * p + c];
+                sum += std::abs(error - double(warped[c]));
+            }
+            count += 3;
+        }
+    }
+    return count ? sum / double(count) : kNoPixel;
 }
 
 }  // namespace affinity

@@ -1,6 +1,6 @@
 #pragma once
 // Image error metrics on linear RGB buffers of equal size (n floats). Definitions follow
-// ALGORITHM.md section 10.
+// ALGORITHM.md section 10; Python: affinity.metrics.
 #include <cstddef>
 
 namespace affinity {
@@ -11,5 +11,15 @@ double smape(const float* image, const float* reference, std::size_t n);
 double relativeMse(const float* image, const float* reference, std::size_t n);
 // PSNR in dB after tone mapping both with x / (1 + x) (values in [0, 1)).
 double tonemappedPsnr(const float* image, const float* reference, std::size_t n);
+
+// Temporal error (flicker relative to the reference's own change) of frame t against frame t-1:
+// mean over valid pixels and the 3 channels of |(O_t - W O_{t-1}) - (R_t - W R_{t-1})|, where W
+// warps the previous frame bilinearly by `motion` (height x width x 2, pixels into the previous
+// frame, frame layout). A pixel (x, y) counts when valid >= 0.5 and its warp target lies inside
+// the grid of pixel centres, x + motion.x in [0, width-1] and y + motion.y in [0, height-1], so
+// no tap is border-clamped. Images are height x width x 3; NaN when no pixel counts.
+double temporalError(const float* output, const float* previousOutput, const float* reference,
+                     const float* previousReference, const float* motion, const float* valid, int width,
+                     int height);
 
 }  // namespace affinity

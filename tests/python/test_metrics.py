@@ -1,0 +1,84 @@
+"""affinity.metrics: every definition on small images with values worked out by hand."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from affinity import metrics
+
+
+def image(*values: float) -> np.ndarray:
+    """A 1 x N image whose pixels are grey (all three channels = value)."""
+    return np.repeat(np.array(values, np.float32)[None, :, None], 3, axis=2)
+
+
+def test_smape_by_hand() -> None:
+    # per channel: |1-0|/(1+0+0.01), |0-0|/0.01 = 0, |2-1|/(2+1+0.01)
+    assert metrics.smape(image(1, 0, 2), image(0, 0, 1)) == pytest.approx((1 / 1.01 + 1 / 3.01) / 3, rel=1e-6)
+    assert metrics.smape(image(3), image(3)) == 0.0
+
+
+def test_relmse_by_hand() -> None:
+    # 0.5 * mean((1-0)^2/0.01, (3-1)^2/1.01)
+    assert metrics.relmse(image(1, 3), image(0, 1)) == pytest.approx(0.25 * (100 + 4 / 1.01), rel=1e-6)
+
+
+def test_psnr_by_hand() -> None:
+    # tone-mapped 1 -> 0.5, 0 -> 0: MSE over (1, 0) vs (0, 0) is 0.125
+    assert metrics.psnr(image(1, 0), image(0, 0)) == pytest.approx(-10 * math.log10(0.125), rel=1e-6)
+    assert metrics.psnr(image(2), image(2)) == math.inf
+
+
+def test_metrics_accept_float64_and_reject_mismatched_shapes() -> None:
+    assert metrics.smape(np.ones((2, 2, 3)), np.ones((2, 2, 3))) == 0.0
+    with pytest.raises(ValueError, match="shape"):
+        metrics.smape(np.ones((2, 2, 3), np.float32), np.ones((2, 3, 3), np.float32))
+
+
+def half_pixel_sequence() -> dict[str, np.ndarray]:
+    # 3x1 frames: previous output (1, 3, 5), current 2, every pixel moved half a pixel right, so
+    # the warped previous output is 2 at x=0, 4 at x=1; x=2 looks at 2.5, outside the image.
+    return {
+        "output": image(2, 2, 2),
+        "previous_output": image(1, 3, 5),
+        "reference": image(0, 0, 0),
+        "previous_reference": image(0, 0, 0),
+        "motion": np.array([[[0.5, 0.0]] * 3], np.float32),
+        "valid": np.ones((1, 3), np.float32),
+    }
+
+
+def test_temporal_error_by_hand() -> None:
+    s = half_pixel_sequence()
+    assert metrics.temporal_error(**s) == pytest.approx(1.0)  # (|2-2| + |2-4|) / 2 pixels
+    s["reference"][0, 1, 0] = 1.0  # reference changes by +1 in red at x=1: |(2-1) - 4| = 3
+    assert metrics.temporal_error(**s) == pytest.approx((3 + 2 + 2) / 6)
+    s["valid"][0, 0] = 0.0  # x=0 no longer counts
+    assert metrics.temporal_error(**s) == pytest.approx((3 + 2 + 2) / 3)
+    s["valid"][0, 1] = 0.0
+    assert math.isnan(metrics.temporal_error(**s))
+
+
+def test_temporal_error_is_zero_when_the_output_follows_the_reference() -> None:
+    rng = np.random.default_rng(1)
+    reference, previous = rng.random((6, 5, 3), np.float32), rng.random((6, 5, 3), np.float32)
+    motion = rng.uniform(-1, 1, (6, 5, 2)).astype(np.float32)
+    valid = np.ones((6, 5), np.float32)
+    assert metrics.temporal_error(reference, previous, reference, previous, motion, valid) == pytest.approx(0.0, abs=1e-6)
+    with pytest.raises(ValueError, match="motion"):
+        metrics.temporal_error(reference, previous, reference, previous, motion[:, :, :1], valid)
+
+
+def test_flip_is_zero_for_identical_images_and_grows_with_the_error() -> None:
+    rng = np.random.default_rng(2)
+    reference = rng.random((32, 32, 3), np.float32)
+    assert metrics.flip(reference, reference) == 0.0
+    small, large = metrics.flip(reference * 1.1, reference), metrics.flip(reference * 3.0, reference)
+    assert 0.0 < small < large <= 1.0
+
+
+def test_ms_per_megapixel_by_hand() -> None:
+    assert metrics.ms_per_megapixel(0.5, 1000, 500) == pytest.approx(1000.0)  # 500 ms on 0.5 Mpx
