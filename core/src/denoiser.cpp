@@ -8,6 +8,7 @@
 
 #include "affinity/error.h"
 #include "affinity_filter.h"
+#include "feature_map_pool.h"
 #include "network.h"
 
 namespace affinity {
@@ -52,16 +53,28 @@ void noisyRadiance(const SampleFrame& frame, FeatureMap& out) {
     }
 }
 
-// out = valid ? warped : current, per pixel.
-void selectHistory(const FeatureMap& warped, const FeatureMap& current, const std::vector<float>& valid,
-                   FeatureMap& out) {
-    out.resize(current.height(), current.width(), current.channels());
+// warped = current wherever the history is not valid.
+void keepWhereValid(FeatureMap& warped, const FeatureMap& current, const std::vector<float>& valid) {
+    const int channels = current.channels();
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < current.height(); ++y)
+        for (int x = 0; x < current.width(); ++x)
+            if (!(valid[std::size_t(y) * std::size_t(current.width()) + std::size_t(x)] > 0.5f)) {
+                const float* from = current.pixel(y, x);
+                std::copy(from, from + channels, warped.pixel(y, x));
+            }
+}
+
+// history = (1 - lambda) current + lambda history, in place.
+void blendInto(const FeatureMap& current, const FeatureMap& lambda, FeatureMap& history) {
     const int channels = current.channels();
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < current.height(); ++y)
         for (int x = 0; x < current.width(); ++x) {
-            const float* from = valid[std::size_t(y) * current.width() + x] > 0.5f ? warped.pixel(y, x) : current.pixel(y, x);
-            std::copy(from, from + channels, out.pixel(y, x));
+            const float l = lambda.pixel(y, x)[0];
+            const float* c = current.pixel(y, x);
+            float* h = history.pixel(y, x);
+            for (int k = 0; k < channels; ++k) h[k] = (1.0f - l) * c[k] + l * h[k];
         }
 }
 
@@ -125,14 +138,16 @@ struct Denoiser::State {
     float meanDepth = 0.0f;
     // Temporal state (docs/MODEL.md sections 3 and 7).
     FeatureMap embeddingHistory, radianceHistory, output, lastFeatures;
-    // Scratch buffers, kept to avoid reallocating every frame.
-    FeatureMap embedding, radiance, warped, historyEmbedding, historyRadiance, head;
-    std::vector<FeatureMap> encoderOut, scratch;
-    std::vector<FeatureMap> kernelFeatures, kernelBandwidth, kernelCentre;
-    FeatureMap temporalBandwidth, lambda, filterA, filterB, warpedOutput, warpedFeatures, validMap;
+    // Every map with as many channels as the network's layers comes from the pool and goes back
+    // as soon as it is dead; the few-channel maps below are kept from frame to frame.
+    FeatureMapPool pool;
+    FeatureMap radiance, historyRadiance, temporalBandwidth, lambda, filterA, filterB, warpedOutput, validMap;
+    std::vector<FeatureMap> kernelBandwidth, kernelCentre;
 
     State(Model m, DenoiserOptions o) : model(std::move(m)), options(o) {}
-    void runUnet(const Network& net);
+    FeatureMap runUnet(const Network& net, const FeatureMap& embedding, const FeatureMap& historyEmbedding);
+    // Applies the convolutions of `block` in turn to `map`, each output replacing its input.
+    void runBlock(const std::vector<Conv2d>& block, std::size_t first, FeatureMap& map);
 };
 
 Denoiser::Denoiser(Model model, DenoiserOptions options)
@@ -146,49 +161,56 @@ const DenoiserOptions& Denoiser::options() const { return state_->options; }
 
 void Denoiser::reset() { state_->hasHistory = false; }
 
-// head = U-Net(concat(embedding, historyEmbedding)).
-void Denoiser::State::runUnet(const Network& net) {
+void Denoiser::State::runBlock(const std::vector<Conv2d>& block, std::size_t first, FeatureMap& map) {
+    for (std::size_t j = first; j < block.size(); ++j) {
+        FeatureMap next = pool.take(map.height(), map.width(), block[j].outChannels());
+        block[j].apply(map, Activation::LeakyRelu, next);
+        pool.give(map);
+        map = std::move(next);
+    }
+}
+
+// The head's output: U-Net(concat(embedding, historyEmbedding)).
+FeatureMap Denoiser::State::runUnet(const Network& net, const FeatureMap& embedding,
+                                    const FeatureMap& historyEmbedding) {
     const std::size_t levels = net.encoder.size();
-    encoderOut.resize(levels);
-    scratch.resize(2);
-    FeatureMap pooled;
+    std::vector<FeatureMap> encoderOut(levels);  // the skip connections
     for (std::size_t level = 0; level < levels; ++level) {
         const std::vector<Conv2d>& block = net.encoder[level];
-        FeatureMap* in = nullptr;
+        FeatureMap& out = encoderOut[level];
         if (level == 0) {
-            block[0].apply(embedding, historyEmbedding, Activation::LeakyRelu, scratch[0]);
+            out = pool.take(embedding.height(), embedding.width(), block[0].outChannels());
+            block[0].apply(embedding, historyEmbedding, Activation::LeakyRelu, out);
         } else {
-            maxPool2x2(encoderOut[level - 1], pooled);
-            block[0].apply(pooled, Activation::LeakyRelu, scratch[0]);
+            const FeatureMap& above = encoderOut[level - 1];
+            FeatureMap pooled = pool.take((above.height() + 1) / 2, (above.width() + 1) / 2, above.channels());
+            maxPool2x2(above, pooled);
+            out = pool.take(pooled.height(), pooled.width(), block[0].outChannels());
+            block[0].apply(pooled, Activation::LeakyRelu, out);
+            pool.give(pooled);
         }
-        in = &scratch[0];
-        for (std::size_t j = 1; j < block.size(); ++j) {
-            block[j].apply(*in, Activation::LeakyRelu, scratch[j % 2]);
-            in = &scratch[j % 2];
-        }
-        std::swap(encoderOut[level], *in);
+        runBlock(block, 1, out);
     }
-    maxPool2x2(encoderOut[levels - 1], pooled);
-    FeatureMap* current = &pooled;
-    for (std::size_t j = 0; j < net.bottleneck.size(); ++j) {
-        net.bottleneck[j].apply(*current, Activation::LeakyRelu, scratch[j % 2]);
-        current = &scratch[j % 2];
-    }
-    FeatureMap upsampled, low;
-    std::swap(low, *current);
+    const FeatureMap& deepest = encoderOut[levels - 1];
+    FeatureMap low = pool.take((deepest.height() + 1) / 2, (deepest.width() + 1) / 2, deepest.channels());
+    maxPool2x2(deepest, low);
+    runBlock(net.bottleneck, 0, low);
     for (std::size_t l = levels; l-- > 0;) {
-        const FeatureMap& skip = encoderOut[l];
+        FeatureMap& skip = encoderOut[l];
+        FeatureMap upsampled = pool.take(skip.height(), skip.width(), low.channels());
         upsampleNearest(low, skip.height(), skip.width(), upsampled);
+        pool.give(low);
         const std::vector<Conv2d>& block = net.decoder[l];
-        block[0].apply(upsampled, skip, Activation::LeakyRelu, scratch[0]);
-        current = &scratch[0];
-        for (std::size_t j = 1; j < block.size(); ++j) {
-            block[j].apply(*current, Activation::LeakyRelu, scratch[j % 2]);
-            current = &scratch[j % 2];
-        }
-        std::swap(low, *current);
+        low = pool.take(skip.height(), skip.width(), block[0].outChannels());
+        block[0].apply(upsampled, skip, Activation::LeakyRelu, low);
+        pool.give(upsampled);
+        pool.give(skip);
+        runBlock(block, 1, low);
     }
+    FeatureMap head = pool.take(low.height(), low.width(), net.head->outChannels());
     net.head->apply(low, Activation::None, head);
+    pool.give(low);
+    return head;
 }
 
 std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* report) {
@@ -226,32 +248,36 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
     local.usedHistory = history;
 
     // 1-2. Per-sample embedding averaged per pixel; noisy radiance.
-    local.invalidRadiance = net.embedding->apply(frame.samples().data(), height, width, frame.spp(), scale, s.embedding);
+    const int E = net.embedding->outChannels();
+    FeatureMap embedding = s.pool.take(height, width, E);
+    local.invalidRadiance = net.embedding->apply(frame.samples().data(), height, width, frame.spp(), scale, embedding);
     noisyRadiance(frame, s.radiance);
     clock.mark("embedding");
 
     // 3. Histories: warped previous state where valid, the current frame elsewhere.
     const std::vector<float>& valid = frame.valid();  // read only when there is history
+    FeatureMap historyEmbedding = s.pool.take(height, width, E);
     if (history) {
-        warpBilinear(s.embeddingHistory, frame.motion().data(), s.warped);
-        selectHistory(s.warped, s.embedding, valid, s.historyEmbedding);
-        warpBilinear(s.radianceHistory, frame.motion().data(), s.warped);
-        selectHistory(s.warped, s.radiance, valid, s.historyRadiance);
+        warpBilinear(s.embeddingHistory, frame.motion().data(), historyEmbedding);
+        keepWhereValid(historyEmbedding, embedding, valid);
+        warpBilinear(s.radianceHistory, frame.motion().data(), s.historyRadiance);
+        keepWhereValid(s.historyRadiance, s.radiance, valid);
     } else {
-        s.historyEmbedding = s.embedding;
+        historyEmbedding = embedding;
         s.historyRadiance = s.radiance;
     }
+    s.pool.give(s.embeddingHistory);  // read: its memory serves the U-Net
     clock.mark("warp history");
 
     // 4-5. U-Net and per-pixel parameters.
-    s.runUnet(net);
+    FeatureMap head = s.runUnet(net, embedding, historyEmbedding);
     clock.mark("u-net");
     const int K = net.kernels, F = net.affinityFeatures;
-    s.kernelFeatures.resize(K);
-    s.kernelBandwidth.resize(K);
-    s.kernelCentre.resize(K);
-    for (int k = 0; k < K; ++k) {
-        s.kernelFeatures[k].resize(height, width, F);
+    std::vector<FeatureMap> kernelFeatures(static_cast<std::size_t>(K));
+    s.kernelBandwidth.resize(std::size_t(K));
+    s.kernelCentre.resize(std::size_t(K));
+    for (std::size_t k = 0; k < std::size_t(K); ++k) {
+        kernelFeatures[k] = s.pool.take(height, width, F);
         s.kernelBandwidth[k].resize(height, width, 1);
         s.kernelCentre[k].resize(height, width, 1);
     }
@@ -260,46 +286,55 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {
-            const float* o = s.head.pixel(y, x);
-            for (int k = 0; k < K; ++k) {
-                const float* base = o + k * (F + 2);
-                std::copy(base, base + F, s.kernelFeatures[k].pixel(y, x));
+            const float* o = head.pixel(y, x);
+            for (std::size_t k = 0; k < std::size_t(K); ++k) {
+                const float* base = o + int(k) * (F + 2);
+                std::copy(base, base + F, kernelFeatures[k].pixel(y, x));
                 s.kernelBandwidth[k].pixel(y, x)[0] = base[F];
                 s.kernelCentre[k].pixel(y, x)[0] = sigmoid(base[F + 1]);
             }
             s.temporalBandwidth.pixel(y, x)[0] = o[K * (F + 2)];
             s.lambda.pixel(y, x)[0] = sigmoid(o[K * (F + 2) + 1]);
         }
+    s.pool.give(head);
 
     // 3 (continued). Accumulate with the learned lambda; keep for the next frame.
-    blend(s.embedding, s.historyEmbedding, s.lambda, s.warped);
-    std::swap(s.embeddingHistory, s.warped);
+    blendInto(embedding, s.lambda, historyEmbedding);
+    s.embeddingHistory = std::move(historyEmbedding);
+    s.pool.give(embedding);
     blend(s.radiance, s.historyRadiance, s.lambda, s.filterA);
     s.radianceHistory = s.filterA;
     clock.mark("kernel parameters and accumulation");
 
     // 6. Dilated spatial kernels on the accumulated radiance.
+    auto params = [&](int k) {
+        return KernelParams{&kernelFeatures[std::size_t(k)], &s.kernelBandwidth[std::size_t(k)],
+                            &s.kernelCentre[std::size_t(k)]};
+    };
     FeatureMap* in = &s.filterA;
     FeatureMap* out = &s.filterB;
     for (int k = s.options.allKernels ? 0 : K - 1; k + 1 < K; ++k) {
-        affinityFilter(*in, {&s.kernelFeatures[k], &s.kernelBandwidth[k], &s.kernelCentre[k]}, net.tapSize, 1 << k, *out);
+        affinityFilter(*in, params(k), net.tapSize, 1 << k, *out);
         std::swap(in, out);
     }
-    // 7. The last kernel, with temporal taps on the warped previous output.
-    const KernelParams last{&s.kernelFeatures[K - 1], &s.kernelBandwidth[K - 1], &s.kernelCentre[K - 1]};
     clock.mark("spatial kernels");
+    // 7. The last kernel, with temporal taps on the warped previous output.
     if (history && s.options.temporalKernel) {
         warpBilinear(s.output, frame.motion().data(), s.warpedOutput);
-        warpBilinear(s.lastFeatures, frame.motion().data(), s.warpedFeatures);
+        FeatureMap warpedFeatures = s.pool.take(height, width, F);
+        warpBilinear(s.lastFeatures, frame.motion().data(), warpedFeatures);
         s.validMap.resize(height, width, 1);
         std::copy(valid.begin(), valid.end(), s.validMap.data());
-        affinityFilterTemporal(*in, last, net.tapSize, 1 << (K - 1), s.temporalBandwidth, s.warpedOutput,
-                               s.warpedFeatures, s.validMap, *out);
+        affinityFilterTemporal(*in, params(K - 1), net.tapSize, 1 << (K - 1), s.temporalBandwidth, s.warpedOutput,
+                               warpedFeatures, s.validMap, *out);
+        s.pool.give(warpedFeatures);
     } else {
-        affinityFilter(*in, last, net.tapSize, 1 << (K - 1), *out);
+        affinityFilter(*in, params(K - 1), net.tapSize, 1 << (K - 1), *out);
     }
     std::swap(s.output, *out);
-    std::swap(s.lastFeatures, s.kernelFeatures[K - 1]);
+    s.pool.give(s.lastFeatures);
+    s.lastFeatures = std::move(kernelFeatures[std::size_t(K - 1)]);
+    for (FeatureMap& map : kernelFeatures) s.pool.give(map);
     s.hasHistory = true;
     clock.mark("temporal kernel");
 

@@ -4,6 +4,7 @@
 #include <cstddef>
 #include <memory>
 #include <new>
+#include <utility>
 
 namespace affinity {
 
@@ -13,8 +14,20 @@ public:
     FeatureMap(int height, int width, int channels) { resize(height, width, channels); }
     FeatureMap(const FeatureMap& other) { *this = other; }
     FeatureMap& operator=(const FeatureMap& other);  // deep copy
-    FeatureMap(FeatureMap&&) noexcept = default;
-    FeatureMap& operator=(FeatureMap&&) noexcept = default;
+    FeatureMap(FeatureMap&& other) noexcept { swap(other); }
+    FeatureMap& operator=(FeatureMap&& other) noexcept {
+        FeatureMap moved;
+        moved.swap(other);
+        swap(moved);
+        return *this;
+    }
+    void swap(FeatureMap& other) noexcept {
+        std::swap(data_, other.data_);
+        std::swap(capacity_, other.capacity_);
+        std::swap(height_, other.height_);
+        std::swap(width_, other.width_);
+        std::swap(channels_, other.channels_);
+    }
 
     // Reallocates only when the new size needs more memory than held; contents undefined.
     void resize(int height, int width, int channels);
@@ -26,6 +39,7 @@ public:
     std::size_t pixelCount() const { return std::size_t(height_) * std::size_t(width_); }
     std::size_t size() const { return pixelCount() * std::size_t(channels_); }
     bool empty() const { return size() == 0; }
+    std::size_t capacity() const { return capacity_; }  // floats held
 
     float* data() { return data_.get(); }
     const float* data() const { return data_.get(); }

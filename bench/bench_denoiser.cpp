@@ -1,0 +1,144 @@
+// The whole denoiser on one model at one frame size: milliseconds per frame (median over the
+// timed frames, the first frame excluded as it has no history), the median of every pipeline
+// stage, CPU seconds per frame, the convolution FLOP rate, and the process's peak memory
+// (input frame included). One model per process, so that peak memory is that model's.
+//
+//   bench_denoiser [--model FILE.affw] [--size 1920x1080] [--spp 4] [--frames 6] [--threads N]
+//
+// Prints one JSON object. Content of the frame does not matter for speed: plausible random
+// features with a small motion everywhere.
+#include <omp.h>
+#include <sys/resource.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <cstdio>
+#include <ctime>
+#include <map>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "affinity/denoiser.h"
+#include "affinity/error.h"
+
+namespace affinity {
+namespace {
+
+struct Options {
+    std::string model;  // empty: the built-in model
+    int width = 1920, height = 1080, spp = 4, frames = 6, threads = 0;
+};
+
+Options parse(int argc, char** argv) {
+    Options options;
+    for (int i = 1; i < argc; ++i) {
+        const std::string flag = argv[i];
+        if (i + 1 >= argc) throw Error("bench_denoiser: " + flag + " needs a value");
+        const std::string value = argv[++i];
+        if (flag == "--model")
+            options.model = value;
+        else if (flag == "--size") {
+            if (std::sscanf(value.c_str(), "%dx%d", &options.width, &options.height) != 2)
+                throw Error("bench_denoiser: --size must be WIDTHxHEIGHT, got " + value);
+        } else if (flag == "--spp")
+            options.spp = std::stoi(value);
+        else if (flag == "--frames")
+            options.frames = std::max(2, std::stoi(value));
+        else if (flag == "--threads")
+            options.threads = std::stoi(value);
+        else
+            throw Error("bench_denoiser: unknown option " + flag);
+    }
+    return options;
+}
+
+SampleFrame randomFrame(int width, int height, int spp, std::uint32_t seed) {
+    SampleFrame frame(width, height, spp, false);
+    frame.info.worldToCamera = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -5, 0, 0, 0, 1};
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < height; ++y) {
+        std::mt19937 rng(seed * 100003u + std::uint32_t(y));
+        std::uniform_real_distribution<float> u(0.0f, 1.0f);
+        for (int x = 0; x < width; ++x) {
+            for (int s = 0; s < spp; ++s) {
+                float* f = frame.sample(x, y, s);
+                for (int c = 0; c < 9; ++c) f[c] = u(rng);
+                const float nx = u(rng) - 0.5f, ny = u(rng) - 0.5f, n = std::sqrt(nx * nx + ny * ny + 1.0f);
+                f[9] = nx / n, f[10] = ny / n, f[11] = 1.0f / n;
+                f[12] = 2.0f + 3.0f * u(rng);
+                f[13] = u(rng);
+                for (int c = 14; c < kFeatureCount; ++c) f[c] = u(rng) < 0.2f ? 1.0f : 0.0f;
+            }
+            frame.motion(x, y)[0] = 0.5f;
+            frame.motion(x, y)[1] = -0.25f;
+            frame.valid(x, y) = 1.0f;
+        }
+    }
+    return frame;
+}
+
+double cpuSeconds() {
+    timespec t{};
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
+    return double(t.tv_sec) + 1e-9 * double(t.tv_nsec);
+}
+
+double median(std::vector<double> values) {
+    std::sort(values.begin(), values.end());
+    const std::size_t n = values.size();
+    return n % 2 ? values[n / 2] : 0.5 * (values[n / 2 - 1] + values[n / 2]);
+}
+
+int run(const Options& options) {
+    if (options.threads > 0) omp_set_num_threads(options.threads);
+    Model model = options.model.empty() ? Model::builtIn() : Model::fromFile(options.model);
+    const SampleFrame frame = randomFrame(options.width, options.height, options.spp, 1);
+    Denoiser denoiser(model);
+    std::vector<double> wall, cpu;
+    std::map<std::string, std::vector<double>> stages;
+    std::vector<std::string> stageOrder;
+    for (int i = 0; i < options.frames; ++i) {
+        DenoiseReport report;
+        const double cpuStart = cpuSeconds();
+        const auto start = std::chrono::steady_clock::now();
+        const std::vector<float> output = denoiser.denoise(frame, &report);
+        const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        if (i == 0) continue;  // no history yet: not the steady state
+        wall.push_back(ms);
+        cpu.push_back(cpuSeconds() - cpuStart);
+        for (const auto& [stage, stageMs] : report.stageMilliseconds) {
+            if (stages.find(stage) == stages.end()) stageOrder.push_back(stage);
+            stages[stage].push_back(stageMs);
+        }
+    }
+    rusage usage{};
+    getrusage(RUSAGE_SELF, &usage);
+    const double pixels = double(options.width) * options.height;
+    std::printf("{\"model\": \"%s\", \"parameters\": %lld, \"kflop_per_pixel\": %.1f, \"size\": \"%dx%d\", "
+                "\"spp\": %d, \"threads\": %d, \"timed_frames\": %zu, \"ms_per_frame\": %.1f, "
+                "\"ms_per_megapixel\": %.1f, \"cpu_seconds_per_frame\": %.3f, \"gflops_per_cpu_second\": %.1f, "
+                "\"peak_rss_mb\": %.0f, \"input_frame_mb\": %.0f, \"stage_ms\": {",
+                model.source().c_str(), static_cast<long long>(model.parameterCount()),
+                model.flopsPerPixel(options.spp) / 1000.0, options.width, options.height, options.spp,
+                omp_get_max_threads(), wall.size(), median(wall), median(wall) / (pixels / 1e6), median(cpu),
+                model.flopsPerPixel(options.spp) * pixels / median(cpu) / 1e9, double(usage.ru_maxrss) / 1024.0,
+                double(frame.samples().size() * sizeof(float)) / (1024.0 * 1024.0));
+    for (std::size_t i = 0; i < stageOrder.size(); ++i)
+        std::printf("%s\"%s\": %.1f", i ? ", " : "", stageOrder[i].c_str(), median(stages[stageOrder[i]]));
+    std::printf("}}\n");
+    return 0;
+}
+
+}  // namespace
+}  // namespace affinity
+
+int main(int argc, char** argv) {
+    try {
+        return affinity::run(affinity::parse(argc, argv));
+    } catch (const std::exception& e) {
+        std::fprintf(stderr, "%s\n", e.what());
+        return 1;
+    }
+}

@@ -1,0 +1,37 @@
+#include "feature_map_pool.h"
+
+#include <utility>
+
+namespace affinity {
+
+FeatureMap FeatureMapPool::take(int height, int width, int channels) {
+    const std::size_t needed = std::size_t(height) * std::size_t(width) * std::size_t(channels);
+    std::size_t best = free_.size(), largest = free_.size();
+    for (std::size_t i = 0; i < free_.size(); ++i) {
+        const std::size_t capacity = free_[i].capacity();
+        if (capacity >= needed && (best == free_.size() || capacity < free_[best].capacity())) best = i;
+        if (largest == free_.size() || capacity > free_[largest].capacity()) largest = i;
+    }
+    const std::size_t pick = best != free_.size() ? best : largest;
+    FeatureMap map;
+    if (pick != free_.size()) {
+        map = std::move(free_[pick]);
+        free_.erase(free_.begin() + std::ptrdiff_t(pick));
+    }
+    map.resize(height, width, channels);
+    return map;
+}
+
+void FeatureMapPool::give(FeatureMap& map) {
+    if (map.capacity() == 0) return;
+    free_.push_back(std::move(map));
+    map = FeatureMap();
+}
+
+std::size_t FeatureMapPool::freeCapacity() const {
+    std::size_t total = 0;
+    for (const FeatureMap& map : free_) total += map.capacity();
+    return total;
+}
+
+}  // namespace affinity

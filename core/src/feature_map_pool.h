@@ -1,0 +1,26 @@
+#pragma once
+// Buffers lent out and handed back within a frame, so that stages whose lifetimes do not overlap
+// share memory, and the same pages serve every frame (touching fresh pages costs about as much
+// as a convolution layer at 1080p). Peak memory is the largest set of maps alive at once.
+#include <vector>
+
+#include "feature_map.h"
+
+namespace affinity {
+
+class FeatureMapPool {
+public:
+    // A map of the given size with undefined contents: the free map that fits most tightly,
+    // else the largest free map grown, else a new one.
+    FeatureMap take(int height, int width, int channels);
+    // Takes `map` back (leaving it empty) for later take() calls.
+    void give(FeatureMap& map);
+
+    // Floats held by free maps (for tests).
+    std::size_t freeCapacity() const;
+
+private:
+    std::vector<FeatureMap> free_;
+};
+
+}  // namespace affinity
