@@ -1,0 +1,54 @@
+// The buffer pool behind the denoiser's memory bound: it must hand back the same memory, pick
+// the tightest fit, and grow rather than pile up buffers.
+#include <gtest/gtest.h>
+
+#include "feature_map_pool.h"
+
+using namespace affinity;
+
+TEST(FeatureMapPool, ReturnedMemoryIsLentAgain) {
+    FeatureMapPool pool;
+    FeatureMap a = pool.take(4, 5, 6);
+    const float* memory = a.data();
+    pool.give(a);
+    EXPECT_TRUE(a.empty());
+    EXPECT_EQ(a.capacity(), 0u);
+    FeatureMap b = pool.take(5, 4, 6);  // same size, other shape
+    EXPECT_EQ(b.data(), memory);
+    EXPECT_EQ(b.height(), 5);
+    EXPECT_EQ(b.width(), 4);
+    EXPECT_EQ(pool.freeCapacity(), 0u);
+}
+
+TEST(FeatureMapPool, PicksTheTightestFreeMapThatFits) {
+    FeatureMapPool pool;
+    FeatureMap big = pool.take(10, 10, 8), medium = pool.take(10, 10, 4), small = pool.take(10, 10, 1);
+    const float* mediumMemory = medium.data();
+    pool.give(big);
+    pool.give(medium);
+    pool.give(small);
+    FeatureMap taken = pool.take(10, 10, 3);
+    EXPECT_EQ(taken.data(), mediumMemory);
+    EXPECT_EQ(pool.freeCapacity(), 100u * 8 + 100u * 1);
+}
+
+TEST(FeatureMapPool, GrowsTheLargestFreeMapWhenNoneFits) {
+    FeatureMapPool pool;
+    FeatureMap a = pool.take(10, 10, 2), b = pool.take(10, 10, 1);
+    pool.give(a);
+    pool.give(b);
+    FeatureMap grown = pool.take(10, 10, 5);
+    EXPECT_EQ(grown.capacity(), 500u);
+    EXPECT_EQ(pool.freeCapacity(), 100u);  // only the smaller map is left; no third buffer
+}
+
+TEST(FeatureMap, MovedFromMapIsEmptyAndReusable) {
+    FeatureMap a(3, 3, 2);
+    a.fill(1.0f);
+    FeatureMap b = std::move(a);
+    EXPECT_EQ(a.capacity(), 0u);  // NOLINT(bugprone-use-after-move): the state after a move is the contract
+    a.resize(2, 2, 1);
+    a.fill(2.0f);
+    EXPECT_EQ(a.data()[3], 2.0f);
+    EXPECT_EQ(b.data()[17], 1.0f);
+}
