@@ -1,0 +1,66 @@
+#!/usr/bin/env bash
+# Denoiser speed and memory per model size at one frame size, against OpenImageDenoise on the
+# same machine in the same run: bench_denoiser (core, C++) for the tiny and small (built-in)
+# models and for the paper-sized network (random weights: speed does not depend on their
+# values; needs the training build for affinity_model_tool), then pyoidn on an input of the
+# same size. Prints a markdown table with each stage's median milliseconds.
+#   scripts/bench_denoiser.sh [WIDTHxHEIGHT] [SPP]        (default 1920x1080, 4)
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+size=${1:-1920x1080}
+spp=${2:-4}
+build=${AFFINITY_BUILD:-$root/build}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+# Idle OpenMP workers sleep instead of spinning, so that back-to-back runs do not slow each other.
+export OMP_WAIT_POLICY=passive
+
+models=("tiny=$root/core/models/tiny.affw" "small=")
+if [ -x "$build/training/affinity_model_tool" ]; then
+  "$build/training/affinity_model_tool" init --preset paper --seed 1 --out "$work/paper.affw" >/dev/null
+  models+=("paper=$work/paper.affw")
+fi
+for entry in "${models[@]}"; do
+  label=${entry%%=*}
+  file=${entry#*=}
+  args=(--size "$size" --spp "$spp" --frames 4)
+  [ -n "$file" ] && args+=(--model "$file")
+  echo "{\"label\": \"$label\", \"result\": $("$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"
+done
+PYTHONPATH=$build/python "$root/.venv/bin/python" - "$size" "$spp" "$work/results.jsonl" <<'PY'
+import json, resource, statistics, sys, time
+
+import numpy as np
+import pyoidn
+
+size, spp, results = sys.argv[1], int(sys.argv[2]), sys.argv[3]
+width, height = map(int, size.split("x"))
+rng = np.random.default_rng(1)
+color = rng.random((height, width, 3), dtype=np.float32) * 2
+albedo = rng.random((height, width, 3), dtype=np.float32)
+normal = rng.standard_normal((height, width, 3)).astype(np.float32)
+normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
+times = []
+for i in range(4):
+    start = time.perf_counter()
+    pyoidn.denoise(color, albedo, normal, hdr=True)
+    if i > 0:
+        times.append(1000 * (time.perf_counter() - start))
+oidn_ms = statistics.median(times)
+oidn_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+
+rows = [json.loads(line) for line in open(results)]
+stages = list(rows[0]["result"]["stage_ms"])
+print(f"Denoiser speed at {size}, {spp} spp, 2 threads; OpenImageDenoise (pyoidn, colour + albedo + normal, "
+      f"quality high) measured in the same run. Peak memory includes the {rows[0]['result']['input_frame_mb']:.0f} MB "
+      "input frame (per-sample features).\n")
+print("| model | parameters | kFLOP/px | ms/frame | OIDN ms / ours | peak memory MB | " + " | ".join(stages) + " |")
+print("|---|---|---|---|---|---|" + "---|" * len(stages))
+for row in rows:
+    r = row["result"]
+    print(f"| {row['label']} | {r['parameters']:,} | {r['kflop_per_pixel']:.1f} | {r['ms_per_frame']:.0f} | "
+          f"{oidn_ms / r['ms_per_frame']:.2f}x | {r['peak_rss_mb']:.0f} | "
+          + " | ".join(f"{r['stage_ms'][s]:.0f}" for s in stages) + " |")
+print(f"| OpenImageDenoise 2.5 (high) | | | {oidn_ms:.0f} | 1.00x | {oidn_rss:.0f} | " + " | " * (len(stages) - 1) + " |")
+print(f"\nload average at the end: {open('/proc/loadavg').read().split()[0]}")
+PY
