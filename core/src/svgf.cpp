@@ -139,8 +139,9 @@ struct Svgf::State {
     // nothing else), and the inside mask.
     std::vector<float> depth, depthScale, depthWidth, inside;
     std::array<std::vector<float>, 4> normal;
-    // Demodulation factors max(albedo, eps) per channel.
-    std::array<std::vector<float>, 3> albedo;
+    // Demodulation factors max(albedo, eps) per channel, and the emitted radiance, which is
+    // added back after filtering.
+    std::array<std::vector<float>, 3> albedo, emitted;
     // Filter state: illumination and its variance, ping-ponged between a-trous passes; the
     // integrated luminance moments and history length; 1 / (sigma_l sqrt(g3x3(variance)) + eps).
     std::array<std::array<std::vector<float>, 3>, 2> colour;
@@ -221,6 +222,7 @@ void Svgf::State::allocate(int width, int height) {
     }
     for (int c = 0; c < 3; ++c) {
         albedo[c].assign(n, 0.0f);
+        emitted[c].assign(n, 0.0f);
         colour[0][c].assign(n, 0.0f);
         colour[1][c].assign(n, 0.0f);
         previousColour[c].assign(n, 0.0f);
@@ -257,9 +259,14 @@ std::vector<float> Svgf::historyLength() const {
     return lengths;
 }
 
-// Per pixel from the samples: illumination (mean radiance / max(albedo, eps), non-finite and
-// negative radiance read as 0) into colour[0]; demodulation factors; mean of the finite
-// positive depths (0 on a miss); the normalised mean normal, or the miss marker.
+// Per pixel from the samples (non-finite and negative radiance read as 0): the radiance of
+// samples whose first non-specular vertex emits or that escaped to the sky (the emissive flag)
+// into `emitted`, left unfiltered as the paper's implementation adds emission after
+// remodulating; the rest demodulated, illumination = radiance / max(albedo, eps), into
+// colour[0] with albedo the mean over the samples (emissive ones counting 0, so that partial
+// coverage is demodulated too); over the other samples, the mean of the finite positive
+// depths and the normalised mean normal, or the miss marker where there are none (the sky,
+// lamps: nothing to filter there).
 void Svgf::State::prepareGuides(const SampleFrame& frame) {
     const int width = frame.width(), height = frame.height(), spp = frame.spp();
     const float inverseSpp = 1.0f / float(spp);
@@ -267,19 +274,26 @@ void Svgf::State::prepareGuides(const SampleFrame& frame) {
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {
-            float radiance[3] = {0, 0, 0}, reflectance[3] = {0, 0, 0}, n[3] = {0, 0, 0};
+            float radiance[3] = {0, 0, 0}, emission[3] = {0, 0, 0}, reflectance[3] = {0, 0, 0}, n[3] = {0, 0, 0};
             float depthSum = 0.0f;
             int hits = 0;
             for (int s = 0; s < spp; ++s) {
                 const float* f = frame.sample(x, y, s);
+                const bool emissive = f[channel::kEmissive] > 0.5f;
                 for (int c = 0; c < 3; ++c) {
                     const float d = f[channel::kDiffuse + c], sp = f[channel::kSpecular + c];
-                    radiance[c] += (std::isfinite(d) && d > 0.0f ? d : 0.0f) + (std::isfinite(sp) && sp > 0.0f ? sp : 0.0f);
+                    const float value =
+                        (std::isfinite(d) && d > 0.0f ? d : 0.0f) + (std::isfinite(sp) && sp > 0.0f ? sp : 0.0f);
                     const float a = f[channel::kAlbedo + c];
-                    reflectance[c] += std::isfinite(a) && a > 0.0f ? a : 0.0f;
+                    if (emissive) {
+                        emission[c] += value;
+                    } else {
+                        radiance[c] += value;
+                        reflectance[c] += std::isfinite(a) && a > 0.0f ? a : 0.0f;
+                    }
                 }
                 const float z = f[channel::kDepth];
-                if (std::isfinite(z) && z > 0.0f) {
+                if (!emissive && std::isfinite(z) && z > 0.0f) {
                     depthSum += z;
                     ++hits;
                     for (int c = 0; c < 3; ++c)
@@ -290,6 +304,7 @@ void Svgf::State::prepareGuides(const SampleFrame& frame) {
             for (int c = 0; c < 3; ++c) {
                 const float factor = std::max(reflectance[c] * inverseSpp, epsilon);
                 albedo[c][i] = factor;
+                emitted[c][i] = std::min(emission[c] * inverseSpp, kMaxIllumination);
                 colour[0][c][i] = std::min(radiance[c] * inverseSpp / factor, kMaxIllumination);
             }
             const float length = std::sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
@@ -501,7 +516,7 @@ void Svgf::State::atrousPass(int step, int from, int to) {
         }
 }
 
-// Radiance = illumination (colour[from]) * demodulation factors, height x width x 3.
+// Radiance = illumination (colour[from]) * demodulation factors + emitted, height x width x 3.
 std::vector<float> Svgf::State::remodulate(int from) const {
     const int width = layout.width, height = layout.height;
     std::vector<float> out(std::size_t(width) * std::size_t(height) * 3);
@@ -510,7 +525,7 @@ std::vector<float> Svgf::State::remodulate(int from) const {
         for (int x = 0; x < width; ++x) {
             const std::size_t i = layout.at(x, y);
             float* o = out.data() + (std::size_t(y) * std::size_t(width) + std::size_t(x)) * 3;
-            for (int c = 0; c < 3; ++c) o[c] = colour[from][c][i] * albedo[c][i];
+            for (int c = 0; c < 3; ++c) o[c] = colour[from][c][i] * albedo[c][i] + emitted[c][i];
         }
     return out;
 }
@@ -548,7 +563,7 @@ std::vector<float> Svgf::denoise(const SampleFrame& frame) {
         current = 1 - current;
         if (pass == s.settings.feedbackIteration) s.previousColour = s.colour[current];
     }
-    // colour[current] * albedo -> radiance; moments, history, depth, normals -> previous.
+    // colour[current] * albedo + emitted -> radiance; moments, history, depth, normals -> previous.
     std::vector<float> out = s.remodulate(current);
     s.keepHistory();
     return out;

@@ -32,6 +32,7 @@ __all__ = [
     "Denoiser",
     "Error",
     "Model",
+    "Svgf",
     "FEATURE_COUNT",
     "FEATURE_NAMES",
     "MAX_SPP",
@@ -94,6 +95,14 @@ def list_frame_files(directory: str | os.PathLike[str]) -> list[str]:
 
 Model = _core.Model
 Model.__module__ = __name__
+
+#: SVGF (Schied et al. 2017), the hand-designed spatio-temporal baseline. Stateful like Denoiser:
+#: ``Svgf(**settings).denoise(frame)`` -> float32 (H, W, 3) in sequence order, ``reset()`` at
+#: cuts; keyword settings (atrous_iterations=5, sigma_depth=1, sigma_normal=128,
+#: sigma_luminance=4, alpha_color=0.2, alpha_moments=0.2, history_cap=32, ...) default to the
+#: paper's values, see core/include/affinity/svgf.h.
+Svgf = _core.Svgf
+Svgf.__module__ = __name__
 
 
 class Denoiser:

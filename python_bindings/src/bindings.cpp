@@ -18,20 +18,24 @@
 #include "affinity/frame.h"
 #include "affinity/frame_io.h"
 #include "affinity/model.h"
+#include "frame_convert.h"
 
 namespace py = pybind11;
 
 namespace affinity {
 
 void bindMetrics(py::module_& m);  // metrics_bindings.cpp
+void bindSvgf(py::module_& m);     // svgf_bindings.cpp
 
 namespace {
 
 using FloatArray = py::array_t<float, py::array::c_style>;
 
+}  // namespace
+
 // --- frame -> Python ------------------------------------------------------------------------
 
-// A numpy array that takes over a vector's storage instead of copying it.
+// Declared in frame_convert.h, as frameFromDict below.
 py::array_t<float> arrayOwning(std::vector<float>&& values, std::vector<py::ssize_t> shape) {
     auto owner = std::make_unique<std::vector<float>>(std::move(values));
     float* data = owner->data();
@@ -39,6 +43,8 @@ py::array_t<float> arrayOwning(std::vector<float>&& values, std::vector<py::ssiz
     owner.release();  // the capsule owns it now
     return py::array_t<float>(std::move(shape), data, base);
 }
+
+namespace {
 
 py::array_t<float> matrixArray(const Matrix4& m) {
     return arrayOwning(std::vector<float>(m.begin(), m.end()), {4, 4});
@@ -209,6 +215,8 @@ FrameInfo infoFromDict(const py::handle& value) {
     return info;
 }
 
+}  // namespace
+
 SampleFrame frameFromDict(const py::dict& dict) {
     const std::string what = "frame";
     checkKeys(dict, what, {"samples", "motion", "valid", "reference", "info"});
@@ -243,6 +251,8 @@ SampleFrame frameFromDict(const py::dict& dict) {
     return frame;
 }
 
+namespace {
+
 ExrCompression compressionFromName(const std::string& name) {
     if (name == "none") return ExrCompression::None;
     if (name == "zip") return ExrCompression::Zip;
@@ -265,6 +275,7 @@ PYBIND11_MODULE(_core, m) {
     m.attr("FEATURE_COUNT") = kFeatureCount;
     m.attr("MAX_SPP") = SampleFrame::kMaxSpp;
     bindMetrics(m);
+    bindSvgf(m);
 
     m.def(
         "read_frame",

@@ -24,6 +24,7 @@ struct Surface {
     float noise = 1.0f;
     float motion[2] = {0.0f, 0.0f};
     bool valid = true;  // history validity (frames after the first)
+    float emission = 0.0f;  // > 0: an emitter (or the sky) of this radiance, flagged emissive
 };
 using Scene = std::function<Surface(int x, int y)>;
 
@@ -40,13 +41,15 @@ SampleFrame makeFrame(int width, int height, int spp, int index, unsigned seed, 
                 const float factor = 1.0f + s.noise * u(rng);
                 for (int c = 0; c < 3; ++c) {
                     f[channel::kDiffuse + c] = s.light[c] * s.albedo[c] * factor;
+                    f[channel::kSpecular + c] = s.emission;
                     f[channel::kNormal + c] = s.normal[c];
                     f[channel::kAlbedo + c] = s.albedo[c];
                 }
                 f[channel::kDepth] = s.depth;
                 f[channel::kRoughness] = 1.0f;
+                f[channel::kEmissive] = s.emission > 0.0f ? 1.0f : 0.0f;
             }
-            for (int c = 0; c < 3; ++c) frame.reference(x, y)[c] = s.light[c] * s.albedo[c];
+            for (int c = 0; c < 3; ++c) frame.reference(x, y)[c] = s.light[c] * s.albedo[c] + s.emission;
             frame.motion(x, y)[0] = s.motion[0];
             frame.motion(x, y)[1] = s.motion[1];
             frame.valid(x, y) = index > 0 && s.valid ? 1.0f : 0.0f;
@@ -300,7 +303,7 @@ TEST(Svgf, BadRadianceAndFeaturesGiveFiniteOutput) {
 }
 
 TEST(Svgf, MissesRoundTrip) {
-    // The five left columns see the sky (no depth, normal or albedo; radiance as specular).
+    // The five left columns see the sky: no depth, normal or albedo; emissive radiance.
     Svgf svgf;
     const Scene scene = [](int x, int) {
         Surface s = plane();
@@ -309,17 +312,38 @@ TEST(Svgf, MissesRoundTrip) {
             s.depth = 0.0f;
             s.normal[2] = 0.0f;
             for (int c = 0; c < 3; ++c) s.albedo[c] = s.light[c] = 0.0f;
+            s.emission = 0.7f;
         }
         return s;
     };
     for (int t = 0; t < 3; ++t) {
-        SampleFrame frame = makeFrame(12, 6, 1, t, 9, scene);
-        for (int y = 0; y < 6; ++y)
-            for (int x = 0; x < 5; ++x) {
-                frame.sample(x, y, 0)[channel::kSpecular] = 0.7f;
-                frame.reference(x, y)[0] = 0.7f;
-            }
+        const SampleFrame frame = makeFrame(12, 6, 1, t, 9, scene);
         EXPECT_LT(rmse(svgf.denoise(frame), frame), 1e-5) << "frame " << t;
+    }
+}
+
+// A small bright lamp on a noisy wall (same normal and depth): emission is added back after
+// filtering, so the lamp keeps its radiance and none of it spreads to the wall around it.
+TEST(Svgf, EmissionIsNeitherFilteredNorSpread) {
+    const int width = 24, height = 20;
+    const Scene scene = [](int x, int y) {
+        Surface s = plane();
+        if (x >= 10 && x < 12 && y >= 9 && y < 11) {
+            s.emission = 50.0f;
+            s.albedo[0] = s.albedo[1] = s.albedo[2] = 0.0f;
+        }
+        return s;
+    };
+    Svgf svgf;
+    for (int t = 0; t < 4; ++t) {
+        const SampleFrame frame = makeFrame(width, height, 2, t, 13, scene);
+        const std::vector<float> out = svgf.denoise(frame);
+        for (int y = 0; y < height; ++y)
+            for (int x = 0; x < width; ++x)
+                for (int c = 0; c < 3; ++c) {
+                    const float value = out[(std::size_t(y) * width + x) * 3 + c];
+                    ASSERT_NEAR(value, frame.reference(x, y)[c], 0.05f) << x << ", " << y << " frame " << t;
+                }
     }
 }
 
