@@ -11,7 +11,10 @@
 // a 7x7 bilateral estimate where fewer than 4 frames of history exist; five iterations of the
 // 5x5 a-trous wavelet filter with edge-stopping functions on depth, normals and variance-
 // normalised luminance follow; the result is remodulated by the albedo. The first iteration's
-// output is the colour history for the next frame.
+// output is the colour history for the next frame. The radiance of emissive samples (lamps,
+// the sky) bypasses the filter and is added back at the end, as the paper's implementation
+// does with emission. Guides per pixel: the mean over the non-emissive samples of the finite
+// positive depths and of the normals (normalised).
 #include <memory>
 #include <vector>
 
@@ -36,7 +39,7 @@ struct SvgfSettings {
     float reprojectDepthTolerance = 10.0f;
     float reprojectNormalCosine = 0.9f;
     // Radiance is demodulated by max(albedo, albedoEpsilon) per channel and remodulated by the
-    // same factor, so misses (albedo 0) and black surfaces round-trip exactly.
+    // same factor, so black surfaces round-trip exactly.
     float albedoEpsilon = 1e-3f;
 };
 
