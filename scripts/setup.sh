@@ -39,3 +39,6 @@ build_dir=${AFFINITY_BUILD_DIR:-build}
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DPython_EXECUTABLE="$root/.venv/bin/python" ${AFFINITY_CMAKE_ARGS:-} >/dev/null
 cmake --build "$build_dir" -j "${AFFINITY_JOBS:-2}"
+# The core's wheel for Blender's Python in the extension, and the extension zip (skipped when
+# nothing changed).
+"$root/scripts/build_extension.sh"

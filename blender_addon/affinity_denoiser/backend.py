@@ -3,11 +3,18 @@
 Everything the add-on needs from the core goes through ``create_denoiser`` and
 ``write_sample_frame``. The module is imported lazily so that the add-on registers (and its
 panel shows a clear message) even when the core is missing.
+
+The core comes from the wheel bundled with the extension (``wheels`` in blender_manifest.toml),
+which Blender installs into the extensions' site-packages; it is preferred over any other
+``affinity`` on the path (e.g. a development build in ``build/python``), which is used only
+when there is no bundled one.
 """
 
 from __future__ import annotations
 
+import functools
 import os
+import sys
 from typing import Any, Callable, Protocol
 
 import numpy as np
@@ -27,19 +34,82 @@ class SequenceDenoiser(Protocol):
 _factory: Callable[[str], SequenceDenoiser] | None = None
 
 
-def load_core(need_denoiser: bool = True) -> Any:
-    """The ``affinity`` module, or CoreMissing with the reason and what to do.
+#: What -march=x86-64-v3 (the core's build, CMakeLists.txt) lets the compiler use, as Linux
+#: names it in /proc/cpuinfo: without them the core would die of an illegal instruction.
+X86_64_V3_FLAGS = ("avx", "avx2", "fma", "bmi1", "bmi2", "f16c", "movbe", "abm")
 
-    ``need_denoiser=False`` accepts a core that can only read and write frame files.
-    """
+
+def missing_cpu_features(cpuinfo: str) -> list[str]:
+    """The x86-64-v3 features absent from a /proc/cpuinfo text ([] when it has no flags line)."""
+    for line in cpuinfo.splitlines():
+        key, _, value = line.partition(":")
+        if key.strip() == "flags":
+            present = set(value.split())
+            return [flag for flag in X86_64_V3_FLAGS if flag not in present]
+    return []
+
+
+def bundled_site_packages() -> str | None:
+    """Where Blender installed the bundled wheel (the extensions' site-packages), if it did."""
+    try:
+        import bpy
+    except ImportError:
+        return None
+    # Blender's layout for extension wheels (addon_utils, 4.2 to 5.0).
+    path = os.path.join(bpy.utils.user_resource("EXTENSIONS"), ".local", "lib",
+                        f"python{sys.version_info[0]}.{sys.version_info[1]}", "site-packages")
+    return path if os.path.isfile(os.path.join(path, "affinity", "__init__.py")) else None
+
+
+@functools.cache
+def _cpu_problem() -> str:
+    """'' when this CPU can run the core (or /proc/cpuinfo does not say), else why not."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as handle:
+            missing = missing_cpu_features(handle.read())
+    except OSError:
+        return ""
+    if not missing:
+        return ""
+    return ("the affinity core needs an x86-64-v3 CPU (AVX2 + FMA: Intel Haswell, AMD Zen or "
+            f"newer); this one lacks {', '.join(missing)}")
+
+
+def _import_core() -> Any:
+    """``affinity``: the bundled wheel's when there is one, else whatever the path has."""
+    if "affinity" in sys.modules:
+        return sys.modules["affinity"]
+    if problem := _cpu_problem():
+        raise CoreMissing(problem)
+    bundled = bundled_site_packages()
+    bundled_error = ""
+    if bundled is not None:
+        sys.path.insert(0, bundled)
+        try:
+            import affinity
+            return affinity
+        except ImportError as exc:
+            bundled_error = f" (the bundled one in {bundled} failed: {exc})"
+        finally:
+            sys.path.remove(bundled)  # the first occurrence: the one inserted above
     try:
         import affinity
     except ImportError as exc:
         raise CoreMissing(
             "the affinity core (Python module 'affinity') is not installed for this Blender: "
-            f"{exc}. Build it (cmake --build build --target _core) and put build/python on "
-            "PYTHONPATH, or install the extension package that bundles its wheel."
+            f"{exc}{bundled_error}. Install the extension package that bundles its wheel "
+            "(scripts/build_extension.sh builds it), or build it (cmake --build build --target "
+            "_core) and put build/python on PYTHONPATH."
         ) from exc
+    return affinity
+
+
+def load_core(need_denoiser: bool = True) -> Any:
+    """The ``affinity`` module, or CoreMissing with the reason and what to do.
+
+    ``need_denoiser=False`` accepts a core that can only read and write frame files.
+    """
+    affinity = _import_core()
     if need_denoiser and not hasattr(affinity, "Denoiser"):
         raise CoreMissing(
             f"the affinity core at {getattr(affinity, '__file__', '?')} has no Denoiser "

@@ -1,18 +1,47 @@
-"""The extension package: Blender's own validator and builder accept it."""
+"""The extension package: Blender's own validator and builder accept it, it bundles the core's
+wheel (built by scripts/build_extension.sh), and that wheel works on its own and inside an
+installed extension."""
 
 from __future__ import annotations
 
+import json
 import os
+import re
 import subprocess
 import sys
 import tomllib
+import zipfile
 from typing import Any
 
 import bpy
+import pytest
 
+from affinity_denoiser import backend
 from conftest import ROOT
 
 PACKAGE = os.path.join(ROOT, "blender_addon", "affinity_denoiser")
+TESTS = os.path.dirname(os.path.abspath(__file__))
+
+
+def _manifest() -> dict[str, Any]:
+    with open(os.path.join(PACKAGE, "blender_manifest.toml"), "rb") as handle:
+        return tomllib.load(handle)
+
+
+def _bundled_wheel() -> str:
+    """The path of the one wheel the manifest lists; it must exist."""
+    wheels = _manifest().get("wheels", [])
+    assert len(wheels) == 1, f"the manifest should list one wheel, not {wheels}"
+    path = os.path.normpath(os.path.join(PACKAGE, wheels[0]))
+    assert os.path.isfile(path), f"{path} is missing: run scripts/build_extension.sh"
+    return path
+
+
+def _cmake_project_version() -> str:
+    with open(os.path.join(ROOT, "CMakeLists.txt"), encoding="utf-8") as handle:
+        match = re.search(r"project\(affinity VERSION ([0-9.]+)", handle.read())
+    assert match
+    return match.group(1)
 
 
 def _blender_ext() -> str | None:
@@ -23,8 +52,7 @@ def _blender_ext() -> str | None:
 
 
 def test_manifest_fields() -> None:
-    with open(os.path.join(PACKAGE, "blender_manifest.toml"), "rb") as handle:
-        manifest = tomllib.load(handle)
+    manifest = _manifest()
     assert manifest["schema_version"] == "1.0.0"
     assert manifest["id"] == "affinity_denoiser"
     assert manifest["type"] == "add-on"
@@ -45,10 +73,184 @@ def test_blender_validates_the_package() -> None:
     assert result.returncode == 0, result.stdout + result.stderr
 
 
-def test_blender_builds_a_valid_archive(tmp_path: Any) -> None:
-    result = _run("build", "--source-dir", PACKAGE, "--output-dir", str(tmp_path))
+def _build_archive(output_dir: Any) -> str:
+    os.makedirs(output_dir, exist_ok=True)
+    result = _run("build", "--source-dir", PACKAGE, "--output-dir", str(output_dir))
     assert result.returncode == 0, result.stdout + result.stderr
-    archive = tmp_path / "affinity_denoiser-0.1.0.zip"
-    assert archive.is_file()
-    result = _run("validate", str(archive))
+    archive = os.path.join(str(output_dir), "affinity_denoiser-0.1.0.zip")
+    assert os.path.isfile(archive)
+    return archive
+
+
+def test_blender_builds_a_valid_archive_with_the_wheel(tmp_path: Any) -> None:
+    archive = _build_archive(tmp_path)
+    result = _run("validate", archive)
     assert result.returncode == 0, result.stdout + result.stderr
+    wheel = _bundled_wheel()
+    with zipfile.ZipFile(archive) as packed, open(wheel, "rb") as handle:
+        assert packed.read("wheels/" + os.path.basename(wheel)) == handle.read()
+        assert [n for n in packed.namelist() if n.startswith("wheels/")] == [
+            "wheels/" + os.path.basename(wheel)]
+
+
+def test_manifest_lists_exactly_the_built_wheel() -> None:
+    manifest = _manifest()
+    name = os.path.basename(_bundled_wheel())
+    assert manifest["wheels"] == [f"./wheels/{name}"]
+    # Blender installs every wheel listed; the builder packs every file in the folder.
+    assert os.listdir(os.path.join(PACKAGE, "wheels")) == [name]
+    # For Blender's CPython 3.11 on Linux x86-64, versioned like the CMake project.
+    assert re.fullmatch(rf"affinity-{re.escape(_cmake_project_version())}-cp311-cp311-"
+                        r"manylinux_2_\d+_x86_64\.whl", name), name
+    assert manifest["platforms"] == ["linux-x64"]
+
+
+def test_wheel_holds_the_package_and_the_libraries_it_needs() -> None:
+    with zipfile.ZipFile(_bundled_wheel()) as wheel:
+        names = wheel.namelist()
+    # Every Python file of the package, as python_bindings/CMakeLists.txt installs them.
+    source = os.path.join(ROOT, "python_bindings")
+    expected = {
+        os.path.relpath(os.path.join(directory, name), source).replace(os.sep, "/")
+        for directory, dirs, files in os.walk(os.path.join(source, "affinity"))
+        for name in files if name.endswith(".py")
+    }
+    assert {n for n in names if n.startswith("affinity/") and n.endswith(".py")} == expected
+    assert [n for n in names if n.startswith("affinity/_core")] == [
+        "affinity/_core.cpython-311-x86_64-linux-gnu.so"]
+    # auditwheel copied in what a Blender machine may not have (OpenEXR, Imath, libgomp).
+    vendored = [n.removeprefix("affinity.libs/") for n in names if n.startswith("affinity.libs/")]
+    for library in ("libOpenEXR-", "libImath-", "libgomp-"):
+        assert any(v.startswith(library) for v in vendored), (library, vendored)
+
+
+# Runs in a Python that has only the installed wheel (and numpy): reads, writes and denoises.
+_WHEEL_ALONE = """
+import json, os, sys
+import numpy as np
+import affinity
+
+rng = np.random.default_rng(1)
+h, w, spp = 12, 16, 2
+samples = rng.random((h, w, spp, affinity.FEATURE_COUNT), dtype=np.float32)
+frame = {
+    "samples": samples,
+    "motion": np.zeros((h, w, 2), np.float32),
+    "valid": np.zeros((h, w), np.float32),
+    "reference": None,
+    "info": {"scene_name": "wheel", "frame_index": 0, "reference_spp": 0, "seed": 1,
+             "world_to_camera": np.eye(4, dtype=np.float32),
+             "camera_to_clip": np.eye(4, dtype=np.float32)},
+}
+path = os.path.join(sys.argv[1], "frame_0000.exr")
+affinity.write_frame(path, frame)
+back = affinity.read_frame(path)
+denoiser = affinity.Denoiser()
+outputs = [denoiser.denoise(back), denoiser.denoise(back)]
+with open("/proc/self/maps") as handle:
+    exr = sorted({line.split()[-1] for line in handle if "libOpenEXR" in line})
+print(json.dumps({
+    "affinity": affinity.__file__,
+    "core": affinity._core.__file__,
+    "numpy": np.__version__,
+    "same_samples": bool(np.array_equal(back["samples"], samples)),
+    "shapes": [list(o.shape) for o in outputs],
+    "dtypes": [str(o.dtype) for o in outputs],
+    "finite": all(bool(np.isfinite(o).all()) for o in outputs),
+    "used_history": denoiser.last_report["used_history"],
+    "openexr": exr,
+}))
+"""
+
+
+def test_the_wheel_alone_reads_writes_and_denoises(tmp_path: Any) -> None:
+    site = tmp_path / "site"
+    subprocess.run([sys.executable, "-m", "pip", "install", "--no-deps", "--no-index", "-q",
+                    "--disable-pip-version-check", "--target", str(site), _bundled_wheel()],
+                   check=True, capture_output=True, text=True, timeout=120)
+    # PYTHONPATH names only the installed wheel: not build/python, not the add-on.
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    env["PYTHONPATH"] = str(site)
+    result = subprocess.run([sys.executable, "-W", "error", "-c", _WHEEL_ALONE, str(tmp_path)],
+                            env=env, cwd=str(tmp_path), capture_output=True, text=True,
+                            timeout=300)
+    assert result.returncode == 0, result.stdout + result.stderr
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert report["affinity"] == str(site / "affinity" / "__init__.py")
+    assert report["core"].startswith(str(site / "affinity" / "_core.cpython-311-"))
+    assert report["numpy"].startswith("1.26.")  # bpy's numpy; the main venv has numpy 2
+    assert report["same_samples"]
+    assert report["shapes"] == [[12, 16, 3], [12, 16, 3]]
+    assert report["dtypes"] == ["float32", "float32"]
+    assert report["finite"] and report["used_history"]
+    # The OpenEXR inside the wheel, not the system's.
+    assert report["openexr"] and all(p.startswith(str(site / "affinity.libs")) for p in
+                                     report["openexr"]), report["openexr"]
+
+
+# Runs in a fresh bpy with its own user folders: installs the extension zip as an artist would,
+# then renders one denoised frame with the add-on's operator.
+_INSTALLED_EXTENSION = """
+import json, os, sys
+import numpy as np
+import bpy
+import scenes
+
+archive, out = sys.argv[1], sys.argv[2]
+scenes.build_scene(width=32, height=24, frames=2, spp=2)  # factory settings first: they disable add-ons
+assert bpy.ops.extensions.package_install_files(
+    filepath=archive, repo="user_default", enable_on_install=True) == {"FINISHED"}
+scene = bpy.context.scene
+scene.render.filepath = os.path.join(out, "frame_")
+scene.affinity_denoiser.enabled = True
+scene.affinity_denoiser.samples_per_frame = 2
+scene.frame_set(1)
+assert bpy.ops.affinity_denoiser.render_frame() == {"FINISHED"}
+image = scenes.read_image(os.path.join(out, "affinity_denoised", "denoised_0001.exr"))
+print("RESULT " + json.dumps({
+    "affinity": sys.modules["affinity"].__file__,
+    "addons": sorted(m for m in sys.modules if m.endswith(".affinity_denoiser")),
+    "shape": list(image.shape),
+    "finite": bool(np.isfinite(image).all()),
+}))
+"""
+
+
+def test_installed_extension_denoises_with_its_bundled_core(tmp_path: Any) -> None:
+    archive = _build_archive(tmp_path / "dist")
+    env = dict(os.environ)
+    env["BLENDER_USER_RESOURCES"] = str(tmp_path / "blender")
+    # A development build of the core is on the path too: the bundled wheel must win.
+    env["PYTHONPATH"] = os.pathsep.join([os.path.join(ROOT, "build", "python"), TESTS])
+    result = subprocess.run([sys.executable, "-c", _INSTALLED_EXTENSION, archive,
+                             str(tmp_path / "render")], env=env, cwd=str(tmp_path),
+                            capture_output=True, text=True, timeout=300)
+    lines = [line for line in result.stdout.splitlines() if line.startswith("RESULT ")]
+    assert result.returncode == 0 and lines, result.stdout[-3000:] + result.stderr[-3000:]
+    report = json.loads(lines[-1].removeprefix("RESULT "))
+    site = tmp_path / "blender" / "extensions" / ".local" / "lib" / "python3.11" / "site-packages"
+    assert report["affinity"] == str(site / "affinity" / "__init__.py")
+    assert report["addons"] == ["bl_ext.user_default.affinity_denoiser"]
+    assert report["shape"] == [24, 32, 4] and report["finite"]
+
+
+def test_cpu_check_names_the_missing_x86_64_v3_features() -> None:
+    cpuinfo = "processor\t: 0\nflags\t\t: fpu sse2 avx fma bmi1 f16c movbe abm\n"
+    assert backend.missing_cpu_features(cpuinfo) == ["avx2", "bmi2"]
+    assert backend.missing_cpu_features(cpuinfo.replace("abm", "abm avx2 bmi2")) == []
+    assert backend.missing_cpu_features("no flags here") == []
+
+
+def test_a_cpu_without_x86_64_v3_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.delitem(sys.modules, "affinity", raising=False)
+    monkeypatch.setattr(backend, "_cpu_problem", lambda: "needs an x86-64-v3 CPU; lacks avx2")
+    with pytest.raises(backend.CoreMissing, match="x86-64-v3"):
+        backend.load_core()
+
+
+def test_wheel_build_requirements_match_the_pins() -> None:
+    with open(os.path.join(ROOT, "pyproject.toml"), "rb") as handle:
+        requires = tomllib.load(handle)["build-system"]["requires"]
+    with open(os.path.join(ROOT, "requirements.txt"), encoding="utf-8") as handle:
+        pins = {line.strip() for line in handle if "==" in line and not line.startswith("#")}
+    assert requires and all(r in pins for r in requires), (requires, sorted(pins))
