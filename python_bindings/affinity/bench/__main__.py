@@ -1,0 +1,233 @@
+"""python -m affinity.bench: see the package docstring and docs/BENCHMARK.md."""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import importlib.metadata
+import os
+import pathlib
+import platform
+import shlex
+import sys
+import time
+from collections.abc import Callable
+
+from . import report
+from .config import CONFIGS, Config
+from .data import DEFAULT_DATA_DIR, ensure_sequence, find_affinity_binary, find_source_dir, load_sequence
+from .evaluate import EQUAL_TIME_METHODS, SequenceResult, evaluate_sequence
+from .methods import BUILT_IN, Method, make_methods
+from .speed import measure_speed, speed_markdown, speed_rows
+
+
+def parse_size_list(text: str) -> tuple[tuple[int, int], ...]:
+    if text.strip().lower() in ("", "none"):
+        return ()
+    sizes = []
+    for part in text.split(","):
+        width, _, height = part.strip().lower().partition("x")
+        if not (width.isdigit() and height.isdigit()) or int(width) < 1 or int(height) < 1:
+            raise argparse.ArgumentTypeError(f"'{part}' is not a size WxH")
+        sizes.append((int(width), int(height)))
+    return tuple(sizes)
+
+
+def parse_model(text: str) -> tuple[str, str]:
+    label, separator, path = text.partition("=")
+    if not separator or not label or not path or not label.replace("_", "").isalnum():
+        raise argparse.ArgumentTypeError(f"'{text}' is not LABEL=PATH (LABEL: letters, digits, _)")
+    return label, path
+
+
+def parse_arguments(argv: list[str]) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        prog="python -m affinity.bench",
+        description="Error against time of our denoiser and its competitors on the same frames; "
+                    "stability on the failure-case scenes; speed and memory at 1080p/4K.")
+    parser.add_argument("--out", required=True, type=pathlib.Path, help="output folder (created)")
+    parser.add_argument("--config", choices=sorted(CONFIGS), default="full",
+                        help="full (the documented benchmark) or tiny (CI); default full")
+    parser.add_argument("--data", type=pathlib.Path,
+                        default=pathlib.Path(os.environ.get("AFFINITY_BENCH_DATA", DEFAULT_DATA_DIR)),
+                        help=f"render cache (default $AFFINITY_BENCH_DATA or {DEFAULT_DATA_DIR})")
+    parser.add_argument("--affinity-bin", help="the affinity program (default $AFFINITY_BIN or <build>/core/affinity)")
+    parser.add_argument("--model", type=parse_model, action="append", default=[], metavar="LABEL=PATH",
+                        help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model. The first "
+                             "one's ablations run too. Default: small=builtin tiny=<source>/core/models/tiny.affw")
+    parser.add_argument("--methods", help="comma-separated method labels to run (default: all)")
+    parser.add_argument("--sequences", help="comma-separated sequence names to run (default: the config's)")
+    parser.add_argument("--reference-spp", type=int, help="override the config's reference samples per pixel")
+    parser.add_argument("--speed-sizes", type=parse_size_list,
+                        help="WxH,... for the speed table, or 'none' (full default 1920x1080; add 3840x2160 for 4K)")
+    return parser.parse_args(argv)
+
+
+def default_models(notice: Callable[[str], None]) -> list[tuple[str, str]]:
+    models = [("small", BUILT_IN)]
+    source = find_source_dir()
+    tiny = source / "core" / "models" / "tiny.affw" if source else None
+    if tiny and tiny.is_file():
+        models.append(("tiny", str(tiny)))
+    else:
+        notice("ours-tiny skipped: core/models/tiny.affw not found (set AFFINITY_SOURCE_DIR or pass --model)")
+    return models
+
+
+def configure(args: argparse.Namespace) -> Config:
+    config = CONFIGS[args.config]
+    if args.sequences:
+        wanted = [name.strip() for name in args.sequences.split(",") if name.strip()]
+        known = {s.name: s for s in config.sequences}
+        unknown = [name for name in wanted if name not in known]
+        if unknown:
+            raise SystemExit(f"bench: unknown sequence(s) {', '.join(unknown)} (config {config.name} has "
+                             f"{', '.join(known)})")
+        config = config.with_overrides(sequences=tuple(known[name] for name in wanted))
+    if args.reference_spp is not None:
+        config = config.with_overrides(reference_spp=args.reference_spp)
+    if args.speed_sizes is not None:
+        config = config.with_overrides(speed_sizes=args.speed_sizes)
+    return config
+
+
+def select_methods(methods: list[Method], wanted: str | None) -> list[Method]:
+    if not wanted:
+        return methods
+    labels = [label.strip() for label in wanted.split(",") if label.strip()]
+    known = {m.label: m for m in methods}
+    unknown = [label for label in labels if label not in known]
+    if unknown:
+        raise SystemExit(f"bench: unknown method(s) {', '.join(unknown)} (available: {', '.join(known)})")
+    return [known[label] for label in labels]
+
+
+def version(package: str) -> str:
+    try:
+        return importlib.metadata.version(package)
+    except importlib.metadata.PackageNotFoundError:
+        return "not installed"
+
+
+def machine_text() -> str:
+    cpu = platform.processor() or "unknown CPU"
+    try:
+        for line in pathlib.Path("/proc/cpuinfo").read_text().splitlines():
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    except OSError:
+        pass
+    threads = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return f"{cpu}, {threads} hardware threads usable, Python {platform.python_version()}"
+
+
+def crop_chart(results: list[SequenceResult], reference, sequence: str, spp: int, out: pathlib.Path) -> None:
+    outputs = {r.method: r.last_output for r in results if r.spp == spp and r.last_output is not None}
+    ours = next((r.method for r in results if r.family == "ours" and r.method in outputs), None)
+    panels = [(label, outputs[label]) for label in ("noisy", ours, "oidn", "svgf") if label in outputs]
+    if panels:
+        report.chart_crops(panels, reference, ours or panels[0][0], sequence, spp, out / f"crops_{sequence}.png")
+
+
+def main(argv: list[str] | None = None) -> None:
+    argv = sys.argv[1:] if argv is None else argv
+    args = parse_arguments(argv)
+    config = configure(args)
+    started = time.perf_counter()
+    out: pathlib.Path = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    notices: list[str] = []
+
+    def notice(text: str) -> None:
+        print(f"bench: notice: {text}", flush=True)
+        notices.append(text)
+
+    models = args.model or default_models(notice)
+    methods = select_methods(make_methods(models, notice), args.methods)
+    binary = find_affinity_binary(args.affinity_bin)
+    print(f"bench: config {config.name}: {len(config.sequences)} sequences, {config.frames} frames "
+          f"{config.width}x{config.height}, spp {config.spp}, reference {config.reference_spp} spp; methods "
+          f"{', '.join(m.label for m in methods)}", flush=True)
+
+    results: list[SequenceResult] = []
+    for sequence in config.sequences:
+        folder = ensure_sequence(args.data, sequence, config, binary)
+        frames, noisy_seconds = load_sequence(folder)
+        start = time.perf_counter()
+        mine = evaluate_sequence(sequence.name, sequence.failure_case, frames, noisy_seconds, config.render_spp,
+                                 methods, config.spp, config.equal_time_spp, config.chart_spp,
+                                 config.timing_runs)
+        if sequence.failure_case:
+            report.chart_temporal_error(mine, sequence.name, config.spp, out / f"temporal_error_{sequence.name}.png")
+            crop_chart(mine, frames[-1]["reference"], sequence.name, config.chart_spp, out)
+        for result in mine:
+            result.last_output = None
+        results += mine
+        at = [r for r in mine if r.spp == config.chart_spp]
+        print(f"bench: {sequence.name} in {time.perf_counter() - start:.1f} s; SMAPE at {config.chart_spp} spp: "
+              + ", ".join(f"{r.method} {r.mean('smape'):.4f}" for r in at), flush=True)
+
+    header, rows = report.result_rows(results)
+    report.write_csv(out / "results.csv", header, rows)
+    header, rows = report.per_frame_rows(results)
+    report.write_csv(out / "per_frame.csv", header, rows)
+    for count in config.spp:
+        report.chart_error_vs_time(results, count, out / f"error_vs_time_{count}spp.png", config.name)
+    equal_time = [m.label for m in methods if m.family == "ours" or m.label in EQUAL_TIME_METHODS]
+    points = report.equal_time_points(results, equal_time)
+    if points:
+        report.chart_equal_time(points, out / "equal_time.png", config.name)
+
+    speed_text = ""
+    if config.speed_sizes:
+        records = measure_speed([m.label for m in methods], list(config.speed_sizes), config.speed_spp,
+                                config.speed_repeats, models)
+        header, rows = speed_rows(records)
+        report.write_csv(out / "speed.csv", header, rows)
+        speed_text = speed_markdown(records, config.speed_repeats)
+        report.write_text(out / "speed.md", "# Speed and memory\n\n" + speed_text)
+
+    elapsed = time.perf_counter() - started
+    report.write_text(out / "results.md", results_markdown(argv, config, methods, results, points, speed_text,
+                                                          notices, elapsed))
+    print(f"bench: done in {elapsed:.0f} s -> {out}", flush=True)
+
+
+def results_markdown(argv: list[str], config: Config, methods: list[Method], results: list[SequenceResult],
+                     points: dict, speed_text: str, notices: list[str], elapsed: float) -> str:
+    sequences = ", ".join(s.name for s in config.sequences)
+    failure_cases = [s.name for s in config.sequences if s.failure_case]
+    text = f"# Benchmark results ({config.name} configuration)\n\n"
+    text += f"Command: `python -m affinity.bench {shlex.join(argv)}`, {elapsed:.0f} s, "
+    text += f"{datetime.date.today().isoformat()}.  \n"
+    text += f"Machine: {machine_text()}; pyoidn {version('pyoidn')}, flip-evaluator {version('flip-evaluator')}.\n\n"
+    text += (f"Sequences ({len(config.sequences)}): {sequences}; {config.frames} frames of "
+             f"{config.width}x{config.height}, references of {config.reference_spp} spp. Each sequence is rendered "
+             f"once at {config.render_spp} spp and an S-spp input is the first S samples of every pixel. Render "
+             f"time at S spp: a render of the same frames without reference (`affinity render --reference-spp "
+             f"0`, path tracing only) scaled by S/{config.render_spp}. Metrics: means over frames, the temporal "
+             f"error over frames 2..N (docs/BENCHMARK.md). Time: each sequence is denoised {config.timing_runs} "
+             f"times by a fresh instance of each method; per frame the fastest call counts; ms/Mpx is the median "
+             f"over frames 2..N of that, then the mean over sequences.\n")
+    if notices:
+        text += "\nNotices:\n" + "".join(f"- {n}\n" for n in notices)
+    text += "\n## Quality and speed\n"
+    text += report.summary_markdown(results, config.spp, {m.label: m.description for m in methods})
+    text += "\n" + "".join(f"![error against time, {c} spp](error_vs_time_{c}spp.png)\n" for c in config.spp)
+    if points:
+        text += "\n## Equal time\n\nSMAPE against render + denoise time per frame, means over sequences.\n\n"
+        text += report.equal_time_markdown(points) + "\n![equal time](equal_time.png)\n"
+    if failure_cases:
+        text += "\n## Temporal error per frame on the failure-case scenes\n\n"
+        text += "".join(f"![temporal error, {n}](temporal_error_{n}.png)\n" for n in failure_cases)
+        text += f"\n## Crops of the last frame, {config.chart_spp} spp\n\n"
+        text += "".join(f"![crops, {n}](crops_{n}.png)\n" for n in failure_cases)
+    text += "\n## Per sequence\n" + report.per_scene_markdown(results, config.spp)
+    if speed_text:
+        text += "\n## Speed and memory\n\n" + speed_text
+    return text
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,117 @@
+"""The benchmark's input sequences: rendered once with `affinity render`, cached, reused.
+
+Each sequence is rendered once at the largest sample count any method needs (Config.render_spp)
+with a clean reference; an S-spp input is the first S samples of every pixel (the renderer's
+samples are independent, so that is an S-spp render). The time of the noisy render is measured
+by a second render of the same frames without a reference (``--reference-spp 0``), whose
+``render_summary.json`` seconds cover path tracing only (not file writing); it is stored beside
+the frames as ``noisy_timing.json``. The time at S spp is that time scaled by S / render_spp.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import subprocess
+import tempfile
+import time
+from typing import Any
+
+import numpy as np
+
+import affinity
+
+from .config import Config, Sequence
+
+DEFAULT_DATA_DIR = pathlib.Path.home() / ".cache" / "affinity" / "bench-v1"
+TIMING_FILE = "noisy_timing.json"
+
+
+def find_affinity_binary(explicit: str | None = None) -> pathlib.Path:
+    """--affinity-bin, else $AFFINITY_BIN, else <build>/core/affinity beside <build>/python."""
+    candidates = [explicit, os.environ.get("AFFINITY_BIN")]
+    candidates.append(str(pathlib.Path(affinity.__file__).resolve().parents[2] / "core" / "affinity"))
+    for candidate in candidates:
+        if candidate and os.access(candidate, os.X_OK) and os.path.isfile(candidate):
+            return pathlib.Path(candidate)
+    tried = ", ".join(c for c in candidates if c)
+    raise SystemExit(f"bench: the affinity program was not found (tried {tried}); build it or pass --affinity-bin")
+
+
+def find_source_dir() -> pathlib.Path | None:
+    """The repository: $AFFINITY_SOURCE_DIR, else the source dir recorded in the build's CMake cache."""
+    if os.environ.get("AFFINITY_SOURCE_DIR"):
+        return pathlib.Path(os.environ["AFFINITY_SOURCE_DIR"])
+    cache = pathlib.Path(affinity.__file__).resolve().parents[2] / "CMakeCache.txt"
+    if cache.is_file():
+        for line in cache.read_text(errors="replace").splitlines():
+            if line.startswith("CMAKE_HOME_DIRECTORY:INTERNAL="):
+                return pathlib.Path(line.split("=", 1)[1])
+    return None
+
+
+def sequence_dir(data_dir: pathlib.Path, sequence: Sequence, config: Config) -> pathlib.Path:
+    """Cache folder of one sequence; the name holds every render setting, so configs never collide."""
+    return data_dir / (f"{sequence.name}_seed{sequence.seed}_{config.width}x{config.height}_{config.frames}f_"
+                       f"{config.render_spp}spp_ref{config.reference_spp}")
+
+
+def _render(binary: pathlib.Path, sequence: Sequence, config: Config, reference_spp: int,
+            out: pathlib.Path) -> dict[str, Any]:
+    command = [str(binary), "render", "--scene", sequence.scene, "--frames", str(config.frames),
+               "--spp", str(config.render_spp), "--size", f"{config.width}x{config.height}",
+               "--reference-spp", str(reference_spp), "--seed", str(sequence.seed), "--out", str(out)]
+    result = subprocess.run(command, capture_output=True, text=True)
+    if result.returncode != 0:
+        raise SystemExit(f"bench: {' '.join(command)} failed:\n{result.stderr.strip()}")
+    return json.loads((out / "render_summary.json").read_text())
+
+
+def ensure_sequence(data_dir: pathlib.Path, sequence: Sequence, config: Config,
+                    binary: pathlib.Path) -> pathlib.Path:
+    """The sequence's cache folder, rendered first if it is not there yet.
+
+    A sequence is rendered into a temporary sibling folder and renamed into place only when it
+    is complete, so an interrupted run never leaves a folder that looks finished.
+    """
+    final = sequence_dir(data_dir, sequence, config)
+    if (final / TIMING_FILE).is_file():
+        return final
+    if final.exists():
+        raise SystemExit(f"bench: {final} exists but is incomplete (no {TIMING_FILE}); remove it to re-render")
+    data_dir.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix=final.name + ".partial-", dir=data_dir) as work:
+        frames_dir = pathlib.Path(work) / "frames"
+        summary = _render(binary, sequence, config, config.reference_spp, frames_dir)
+        timing = _render(binary, sequence, config, 0, pathlib.Path(work) / "timing")
+        record = {
+            "render_spp": config.render_spp,
+            "frames": config.frames,
+            "noisy_seconds_per_frame": timing["seconds"] / config.frames,
+            "with_reference_seconds": summary["seconds"],
+            "measured_by": "affinity render --reference-spp 0 (render_summary.json seconds: path tracing only)",
+        }
+        (frames_dir / TIMING_FILE).write_text(json.dumps(record, indent=2) + "\n")
+        os.replace(frames_dir, final)
+    print(f"bench: rendered {sequence.name} ({config.frames} frames {config.width}x{config.height}, "
+          f"{config.render_spp} spp, reference {config.reference_spp} spp) in {time.perf_counter() - start:.1f} s",
+          flush=True)
+    return final
+
+
+def load_sequence(folder: pathlib.Path) -> tuple[list[dict[str, Any]], float]:
+    """The frames (in order) and the noisy render's seconds per frame at the rendered spp."""
+    frames = [affinity.read_frame(path) for path in affinity.list_frame_files(folder)]
+    timing = json.loads((folder / TIMING_FILE).read_text())
+    return frames, float(timing["noisy_seconds_per_frame"])
+
+
+def with_spp(frame: dict[str, Any], spp: int) -> dict[str, Any]:
+    """The frame's first `spp` samples per pixel, without the reference (what a denoiser sees)."""
+    if spp > frame["samples"].shape[2]:
+        raise ValueError(f"frame has {frame['samples'].shape[2]} samples per pixel, {spp} asked")
+    return {"samples": np.ascontiguousarray(frame["samples"][:, :, :spp]), "motion": frame["motion"],
+            "valid": frame["valid"], "reference": None, "info": frame["info"]}
+

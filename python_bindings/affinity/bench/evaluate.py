@@ -1,0 +1,124 @@
+"""Runs every method on every sequence at every sample count and measures it."""
+
+from __future__ import annotations
+
+import statistics
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from affinity import metrics
+
+from .data import with_spp
+from .methods import Method
+
+#: Methods that also run at the equal-time chart's extra sample counts.
+EQUAL_TIME_METHODS = ("noisy", "oidn")
+
+
+@dataclass
+class FrameResult:
+    frame: int
+    smape: float
+    relmse: float
+    psnr: float
+    flip: float
+    temporal_error: float  # NaN on the first frame (no previous frame)
+    seconds: float         # wall time of the method's call on this frame
+
+
+@dataclass
+class SequenceResult:
+    method: str
+    family: str
+    sequence: str
+    failure_case: bool
+    spp: int
+    width: int
+    height: int
+    render_seconds_per_frame: float  # noisy render at this spp (scaled from the rendered spp)
+    frames: list[FrameResult]
+    last_output: np.ndarray | None = field(default=None, repr=False)
+
+    def mean(self, metric: str) -> float:
+        values = [getattr(f, metric) for f in self.frames]
+        if metric == "temporal_error":
+            values = [v for v in values[1:] if not np.isnan(v)]  # frames 2..N
+        return float(np.mean(values)) if values else float("nan")
+
+    @property
+    def seconds_per_frame(self) -> float:
+        """Median seconds per call, the first (warm-up) call excluded when there are more than 2."""
+        times = [f.seconds for f in self.frames]
+        return statistics.median(times[1:] if len(times) > 2 else times)
+
+    @property
+    def ms_per_mpx(self) -> float:
+        return metrics.ms_per_megapixel(self.seconds_per_frame, self.width, self.height)
+
+
+def run_once(method: Method, inputs: list[dict[str, Any]]) -> tuple[list[np.ndarray], list[float]]:
+    """The sequence in order through a fresh runner: the outputs and the wall time of each call."""
+    runner = method.start()
+    outputs, seconds = [], []
+    for frame in inputs:
+        start = time.perf_counter()
+        output = runner(frame)
+        seconds.append(time.perf_counter() - start)
+        outputs.append(np.asarray(output, np.float32))
+    return outputs, seconds
+
+
+def run_methods(methods: list[Method], inputs: list[dict[str, Any]],
+                runs: int) -> dict[str, tuple[list[np.ndarray], list[float]]]:
+    """Each method's outputs (of its first run) and, per frame, its fastest call over `runs`
+    runs. The runs go round-robin over the methods, so a burst of other work on a shared
+    machine slows at most one run of a method rather than all of them; the methods are
+    deterministic, so only the timings differ between runs."""
+    results = {m.label: run_once(m, inputs) for m in methods}
+    for _ in range(runs - 1):
+        for method in methods:
+            outputs, fastest = results[method.label]
+            _, seconds = run_once(method, inputs)
+            results[method.label] = (outputs, [min(a, b) for a, b in zip(fastest, seconds)])
+    return results
+
+
+def measure(outputs: list[np.ndarray], seconds: list[float], frames: list[dict[str, Any]]) -> list[FrameResult]:
+    """Every metric of every frame against the frames' references (timing done before this)."""
+    results = []
+    for t, (output, frame) in enumerate(zip(outputs, frames)):
+        reference = frame["reference"]
+        temporal = float("nan")
+        if t > 0:
+            temporal = metrics.temporal_error(output, outputs[t - 1], reference, frames[t - 1]["reference"],
+                                              frame["motion"], frame["valid"])
+        results.append(FrameResult(t, metrics.smape(output, reference), metrics.relmse(output, reference),
+                                   metrics.psnr(output, reference), metrics.flip(output, reference), temporal,
+                                   seconds[t]))
+    return results
+
+
+def evaluate_sequence(name: str, failure_case: bool, frames: list[dict[str, Any]], noisy_seconds: float,
+                      render_spp: int, methods: list[Method], spp: tuple[int, ...],
+                      equal_time_spp: tuple[int, ...], keep_last_at: int, timing_runs: int) -> list[SequenceResult]:
+    """All methods at the main sample counts, plus noisy and OIDN at the equal-time ones.
+
+    `noisy_seconds` is the noisy render's time per frame at `render_spp`; `keep_last_at` is the
+    sample count whose last output is kept (for the crops); `timing_runs` as in run_methods."""
+    height, width = frames[0]["reference"].shape[:2]
+    results = []
+    for count in sorted(set(spp) | set(equal_time_spp)):
+        inputs = [with_spp(frame, count) for frame in frames]
+        active = [m for m in methods if count in spp or m.label in EQUAL_TIME_METHODS]
+        runs = run_methods(active, inputs, timing_runs)
+        for method in active:
+            outputs, seconds = runs[method.label]
+            result = SequenceResult(method.label, method.family, name, failure_case, count, width, height,
+                                    noisy_seconds * count / render_spp, measure(outputs, seconds, frames))
+            if count == keep_last_at:
+                result.last_output = outputs[-1]
+            results.append(result)
+    return results

@@ -1,0 +1,110 @@
+"""The compared methods, all fed the same frame dicts (first S samples of each pixel, no
+reference).
+
+A Method makes a fresh runner per sequence (``start()``); the runner is called on the frames in
+order and returns linear RGB float32 (H, W, 3). Families: "input" (the noisy mean), "baseline"
+(OpenImageDenoise, SVGF), "ours" (each model of the ladder), "ablation" (the default model with
+one part switched off).
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+import affinity
+
+Runner = Callable[[dict[str, Any]], np.ndarray]
+
+#: The ablations of affinity.Denoiser (ALGORITHM.md section 9).
+ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel")
+#: The built-in model, where a model path is expected.
+BUILT_IN = "builtin"
+
+
+def _channels(group: str) -> slice:
+    first = affinity.FEATURE_NAMES.index(f"{group}.{'X' if group == 'normal' else 'R'}")
+    return slice(first, first + 3)
+
+
+DIFFUSE, SPECULAR, NORMAL, ALBEDO = (_channels(g) for g in ("diffuse", "specular", "normal", "albedo"))
+
+
+@dataclass(frozen=True)
+class Method:
+    label: str
+    family: str
+    description: str
+    start: Callable[[], Runner]
+
+
+def noisy_mean(frame: dict[str, Any]) -> np.ndarray:
+    """Per-pixel mean radiance (diffuse + specular) of the samples: the undenoised input."""
+    samples = frame["samples"]
+    return (samples[:, :, :, DIFFUSE] + samples[:, :, :, SPECULAR]).mean(axis=2, dtype=np.float32)
+
+
+def _noisy() -> Runner:
+    return noisy_mean
+
+
+def _oidn() -> Runner:
+    import pyoidn
+
+    def run(frame: dict[str, Any]) -> np.ndarray:
+        samples = frame["samples"]
+        colour = noisy_mean(frame)
+        albedo = np.clip(samples[:, :, :, ALBEDO].mean(axis=2, dtype=np.float32), 0.0, 1.0)
+        normal = samples[:, :, :, NORMAL].mean(axis=2, dtype=np.float32)
+        length = np.linalg.norm(normal, axis=2, keepdims=True)
+        normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)  # misses stay 0
+        return pyoidn.denoise(colour, albedo, normal, hdr=True)
+
+    return run
+
+
+def _svgf() -> Runner:
+    return affinity.Svgf().denoise
+
+
+def _ours(model: affinity.Model, ablation: str | None = None) -> Callable[[], Runner]:
+    def start() -> Runner:
+        denoiser = affinity.Denoiser(model) if ablation is None else affinity.Denoiser(model, ablation=ablation)
+        return denoiser.denoise
+
+    return start
+
+
+def load_model(path: str) -> affinity.Model:
+    return affinity.Model.built_in() if path == BUILT_IN else affinity.Model.from_file(os.fspath(path))
+
+
+def make_methods(models: list[tuple[str, str]], notice: Callable[[str], None]) -> list[Method]:
+    """noisy, oidn, svgf, ours-<label> for every (label, path) in `models`, and the ablations
+    of the first model. Methods the installed affinity does not provide yet are skipped with a
+    notice."""
+    methods = [
+        Method("noisy", "input", "per-pixel mean of the samples", _noisy),
+        Method("oidn", "baseline", "OpenImageDenoise (pyoidn), HDR colour + albedo + normal, single frame", _oidn),
+    ]
+    if hasattr(affinity, "Svgf"):
+        methods.append(Method("svgf", "baseline", "SVGF (Schied et al. 2017), affinity.Svgf", _svgf))
+    else:
+        notice("svgf skipped: this affinity build has no affinity.Svgf")
+    loaded = [(label, path, load_model(path)) for label, path in models]
+    for label, path, model in loaded:
+        methods.append(Method(f"ours-{label}", "ours", f"affinity.Denoiser, model {label} ({path})", _ours(model)))
+    if loaded:
+        label, _, model = loaded[0]
+        if "ablation" in inspect.signature(affinity.Denoiser).parameters:
+            for ablation in ABLATIONS:
+                methods.append(Method(f"{label}-{ablation}", "ablation",
+                                      f"model {label} with ablation={ablation!r}", _ours(model, ablation)))
+        else:
+            notice("ablations skipped: this affinity build's Denoiser has no ablation keyword")
+    return methods

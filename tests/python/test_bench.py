@@ -1,0 +1,108 @@
+"""The benchmark (python -m affinity.bench) in its tiny configuration, end to end: what must
+hold of every run, plus the pieces with hand-checkable behaviour."""
+
+from __future__ import annotations
+
+import csv
+import math
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import affinity
+from affinity.bench import data, report
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+NUMERIC_COLUMNS = ("smape", "relmse", "psnr", "flip", "temporal_error", "ms_per_frame", "ms_per_mpx",
+                   "render_s_per_frame", "total_s_per_frame")
+
+
+def run_bench(*arguments: str) -> subprocess.CompletedProcess[str]:
+    done = subprocess.run([sys.executable, "-m", "affinity.bench", "--config", "tiny", *arguments],
+                          capture_output=True, text=True, timeout=600)
+    assert done.returncode == 0, done.stdout + done.stderr
+    return done
+
+
+@pytest.fixture(scope="module")
+def bench(tmp_path_factory: pytest.TempPathFactory) -> tuple[pathlib.Path, pathlib.Path, str]:
+    root = tmp_path_factory.mktemp("bench")
+    out, cache = root / "results", root / "data"
+    return out, cache, run_bench("--out", str(out), "--data", str(cache)).stdout
+
+
+def read_rows(path: pathlib.Path) -> list[dict[str, str]]:
+    with path.open(newline="") as handle:
+        return list(csv.DictReader(handle))
+
+
+def test_every_method_ran_and_every_metric_is_finite(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:
+    out, _, _ = bench
+    rows = read_rows(out / "results.csv")
+    methods = {row["method"] for row in rows}
+    expected = {"noisy", "oidn", "ours-small", "ours-tiny"}
+    expected |= {"svgf"} if hasattr(affinity, "Svgf") else set()
+    assert expected <= methods
+    # 2 sequences x 2 spp x every method, plus noisy and oidn at the equal-time chart's 8 spp.
+    assert len(rows) == 2 * 2 * len(methods) + 2 * 2
+    for row in rows:
+        for column in NUMERIC_COLUMNS:
+            assert math.isfinite(float(row[column])), (row["method"], row["sequence"], row["spp"], column)
+    for row in read_rows(out / "per_frame.csv"):
+        values = [row[c] for c in ("smape", "relmse", "psnr", "flip", "ms")]
+        assert all(math.isfinite(float(v)) for v in values), row
+        assert (row["temporal_error"] == "nan") == (row["frame"] == "0"), row
+
+
+def test_ours_beats_the_noisy_input_on_every_scene_at_every_spp(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:
+    out, _, _ = bench
+    rows = read_rows(out / "results.csv")
+    noisy = {(r["sequence"], r["spp"]): float(r["smape"]) for r in rows if r["method"] == "noisy"}
+    ours = [r for r in rows if r["family"] == "ours"]
+    assert {(r["sequence"], r["spp"]) for r in ours} == {(s, p) for s in ("glossy", "disocclusion") for p in ("2", "4")}
+    for r in ours:
+        assert float(r["smape"]) < noisy[(r["sequence"], r["spp"])], (r["method"], r["sequence"], r["spp"])
+
+
+def test_tables_and_charts_are_written(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:
+    out, _, _ = bench
+    markdown = (out / "results.md").read_text()
+    assert "| `ours-small` |" in markdown and "## Equal time" in markdown and "## Speed and memory" in markdown
+    charts = ["error_vs_time_2spp.png", "error_vs_time_4spp.png", "equal_time.png"]
+    charts += [f"{kind}_{scene}.png" for kind in ("temporal_error", "crops") for scene in ("glossy", "disocclusion")]
+    for name in charts:
+        content = (out / name).read_bytes()
+        assert content.startswith(PNG_SIGNATURE) and len(content) > 5000, name
+    speed = read_rows(out / "speed.csv")
+    assert speed and all(r["error"] == "" and float(r["ms_per_frame"]) > 0 for r in speed), speed
+    assert not list(out.glob(".*.tmp"))  # no temporary file left behind
+
+
+def test_rendered_sequences_are_cached_and_reused(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:
+    out, cache, first_log = bench
+    assert "rendered glossy" in first_log and "rendered disocclusion" in first_log
+    second = run_bench("--out", str(out.parent / "again"), "--data", str(cache), "--methods", "noisy",
+                       "--speed-sizes", "none")
+    assert "rendered" not in second.stdout
+    assert {r["method"] for r in read_rows(out.parent / "again" / "results.csv")} == {"noisy"}
+
+
+def test_an_s_spp_input_is_the_first_s_samples_without_the_reference() -> None:
+    samples = np.arange(2 * 3 * 4 * 18, dtype=np.float32).reshape(2, 3, 4, 18)
+    frame = {"samples": samples, "motion": np.zeros((2, 3, 2), np.float32), "valid": np.ones((2, 3), np.float32),
+             "reference": np.ones((2, 3, 3), np.float32), "info": {}}
+    subset = data.with_spp(frame, 2)
+    np.testing.assert_array_equal(subset["samples"], samples[:, :, :2])
+    assert subset["samples"].flags.c_contiguous and subset["reference"] is None
+    with pytest.raises(ValueError):
+        data.with_spp(frame, 5)
+
+
+def test_crops_sit_where_the_error_is_largest() -> None:
+    error = np.zeros((10, 12))
+    error[6, 9] = 1.0
+    y, x = report.worst_window(error, 4)
+    assert y <= 6 < y + 4 and x <= 9 < x + 4
