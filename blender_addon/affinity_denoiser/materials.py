@@ -1,10 +1,12 @@
 """Temporary shader AOV outputs in the user's materials, removed again without a trace.
 
 Each material gets an AOV output with the view distance of the shading point (per-sample depth:
-Cycles' Z pass is only written for the sample at offset 0) and one with the surface's
+Cycles' Z pass is only written for the sample at offset 0), one with the surface's
 (roughness, metallic, transmission), read from the BSDF nodes that feed the active material
-output. Everything added is named with a prefix and removed in a ``finally``; the tests compare
-a snapshot of every material before and after.
+output, and two for motion.py: the shading point in object space (Texture Coordinate "Object")
+and the Object Info "Random" value, which tells which object or instance was hit. Everything
+added is named with a prefix and removed in a ``finally``; the tests compare a snapshot of
+every material before and after.
 """
 
 from __future__ import annotations
@@ -162,6 +164,15 @@ def _add_outputs(material: Any, added: list[str]) -> None:
     surface_out = builder.node("ShaderNodeOutputAOV")
     surface_out.aov_name = passes.AOV_SURFACE
     tree.links.new(combine.outputs[0], surface_out.inputs["Color"])
+
+    info = builder.node("ShaderNodeObjectInfo")
+    object_out = builder.node("ShaderNodeOutputAOV")
+    object_out.aov_name = passes.AOV_OBJECT
+    tree.links.new(info.outputs["Random"], object_out.inputs["Value"])
+    coordinates = builder.node("ShaderNodeTexCoord")  # its object is None: the hit object's own
+    local_out = builder.node("ShaderNodeOutputAOV")
+    local_out.aov_name = passes.AOV_LOCAL
+    tree.links.new(coordinates.outputs["Object"], local_out.inputs["Color"])
 
 
 def _remove(material: Any, names: list[str]) -> None:

@@ -1,9 +1,13 @@
-"""Camera matrices, per-pixel camera rays, and camera-motion vectors with history validity.
+"""Camera matrices, per-pixel camera rays, and motion vectors with history validity.
 
 Cycles' Vector pass forces a full re-sync of the scene on every render when persistent data
-is on, and is all zero when motion blur is on, so motion is computed here from the camera
-matrices of consecutive frames and the depth of the sample at offset 0 (Cycles writes its
-Z pass only for that sample). Only camera motion is captured; see docs/BLENDER.md.
+is on, and is all zero when motion blur is on, so motion is computed here. Static surfaces are
+reprojected from the camera matrices of consecutive frames and the depth of the sample at
+offset 0 (Cycles writes its Z pass only for that sample). Surfaces of objects that moved are
+reprojected through the object's own transform: materials.py writes the hit point in object
+space and the object's Object Info "Random" value (which identifies the object or instance)
+as shader AOVs, and the object's world matrix at the previous frame carries the point there.
+What is exact and what is not: docs/BLENDER.md, "Motion and validity".
 
 Conventions are those of docs/FRAME_FILES.md: matrices act on column vectors, the camera looks
 down -Z with +Y up (Blender's and OpenGL's convention), pixels are x right, y down.
@@ -20,6 +24,8 @@ import numpy as np
 MISS_DEPTH = 1.0e9
 #: A reprojected point is "still visible" when the previous depth agrees within this fraction.
 DEPTH_TOLERANCE = 0.02
+#: A previous pixel vouches for a reprojected point only if a bilinear fetch there weighs it more.
+MIN_FETCH_WEIGHT = 1e-3
 
 
 class CameraError(RuntimeError):
@@ -123,15 +129,53 @@ def world_points(camera: Camera, planar_depth: np.ndarray) -> np.ndarray:
     return points @ camera.camera_to_world.T
 
 
-def project(camera: Camera, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Pixel x, pixel y (y down) and camera-space depth (positive in front) of world points."""
-    in_camera = points @ camera.world_to_camera.T
+def _camera_to_pixels(camera: Camera, in_camera: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pixel x and pixel y (y down) of homogeneous camera-space points (..., 4)."""
     clip = in_camera @ camera.camera_to_clip.T
     w = clip[..., 3]
     safe_w = np.where(np.abs(w) > 1e-12, w, 1e-12)
     px = (clip[..., 0] / safe_w + 1.0) * 0.5 * camera.width
     py = (1.0 - clip[..., 1] / safe_w) * 0.5 * camera.height
+    return px, py
+
+
+def project(camera: Camera, points: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pixel x, pixel y (y down) and camera-space depth (positive in front) of world points."""
+    in_camera = points @ camera.world_to_camera.T
+    px, py = _camera_to_pixels(camera, in_camera)
     return px, py, -in_camera[..., 2]
+
+
+def _seen_before(
+    px: np.ndarray,
+    py: np.ndarray,
+    expected_depth: np.ndarray,
+    miss: np.ndarray,
+    previous_depth: np.ndarray,
+) -> np.ndarray:
+    """Whether the previous frame saw the surface at (px, py): one of the pixels that a bilinear
+    fetch at that point reads saw the expected planar depth (for the environment: saw it too).
+
+    Only pixels with a weight in the fetch count: a point landing on a pixel centre reads that
+    pixel alone, and its right and lower neighbours must not vouch for it.
+    """
+    height, width = previous_depth.shape
+    previous_miss = (previous_depth >= MISS_DEPTH) | (previous_depth <= 0)
+    matches = np.zeros(px.shape, bool)
+    base_x = np.floor(px - 0.5)
+    base_y = np.floor(py - 0.5)
+    fraction_x, fraction_y = px - 0.5 - base_x, py - 0.5 - base_y
+    base_x, base_y = base_x.astype(np.int64), base_y.astype(np.int64)
+    for dy, weight_y in ((0, 1.0 - fraction_y), (1, fraction_y)):
+        for dx, weight_x in ((0, 1.0 - fraction_x), (1, fraction_x)):
+            sx = np.clip(base_x + dx, 0, width - 1)
+            sy = np.clip(base_y + dy, 0, height - 1)
+            seen = previous_depth[sy, sx]
+            seen_miss = previous_miss[sy, sx]
+            same_depth = np.abs(seen - expected_depth) <= DEPTH_TOLERANCE * np.abs(expected_depth)
+            read = weight_x * weight_y > MIN_FETCH_WEIGHT
+            matches |= read & np.where(miss, seen_miss, ~seen_miss & same_depth)
+    return matches
 
 
 def camera_motion(
@@ -140,13 +184,14 @@ def camera_motion(
     previous_camera: Camera | None,
     previous_depth: np.ndarray | None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Motion (H, W, 2) in pixels into the previous frame and validity (H, W), as float32.
+    """Motion (H, W, 2) in pixels into the previous frame and validity (H, W), as float32,
+    for a static scene: only the camera moves.
 
     ``depth`` is Cycles' planar Z pass of this frame (top row first), ``previous_depth`` that of
     the previous frame. A pixel is valid when its surface lands on screen, in front of the
-    previous camera, and one of the four previous pixels around the landing point saw the same
-    depth (or, for the environment, saw the environment too). The first frame has zero motion
-    and no valid pixel.
+    previous camera, and a previous pixel that a bilinear fetch at the landing point reads saw
+    the same depth (or, for the environment, saw the environment too). The first frame has zero
+    motion and no valid pixel.
     """
     shape = (camera.height, camera.width)
     if previous_camera is None or previous_depth is None:
@@ -165,19 +210,169 @@ def camera_motion(
     if previous_camera.orthographic:
         in_front = in_front | miss
     on_screen = (px >= 0) & (px < camera.width) & (py >= 0) & (py < camera.height)
-
-    previous_miss = (previous_depth >= MISS_DEPTH) | (previous_depth <= 0)
-    matches = np.zeros(shape, bool)
-    base_x = np.floor(px - 0.5).astype(np.int64)
-    base_y = np.floor(py - 0.5).astype(np.int64)
-    for dy in (0, 1):
-        for dx in (0, 1):
-            sx = np.clip(base_x + dx, 0, camera.width - 1)
-            sy = np.clip(base_y + dy, 0, camera.height - 1)
-            seen = previous_depth[sy, sx]
-            seen_miss = previous_miss[sy, sx]
-            same_depth = np.abs(seen - expected_depth) <= DEPTH_TOLERANCE * np.abs(expected_depth)
-            matches |= np.where(miss, seen_miss, ~seen_miss & same_depth)
-    valid = on_screen & in_front & matches
+    valid = on_screen & in_front & _seen_before(px, py, expected_depth, miss, previous_depth)
     motion[~np.isfinite(motion)] = 0.0
     return motion.astype(np.float32), valid.astype(np.float32)
+
+
+# --- Objects -------------------------------------------------------------------------------
+
+#: Object types that never have a surface a camera ray could hit.
+_NO_SURFACE = frozenset({"EMPTY", "LIGHT", "LIGHT_PROBE", "LIGHTPROBE", "CAMERA", "SPEAKER",
+                         "ARMATURE", "LATTICE"})
+_UINT32 = 0xFFFFFFFF
+
+
+#: lookup3's ``final`` mix on the state (a, b, c): (x, y, k) is ``x ^= y; x -= rot(y, k)``.
+_FINAL_MIX = ((2, 1, 14), (0, 2, 11), (1, 0, 25), (2, 1, 16), (0, 2, 4), (1, 0, 14), (2, 1, 24))
+
+
+def cycles_name_hash(name: str) -> int:
+    """Cycles' random id of an object that is not an instance: ``hash_uint2(hash_string(name),
+    0)`` (Cycles' util/hash.h: Bob Jenkins' lookup3 ``final`` over a * 37 + byte string hash)."""
+    key = 0
+    for byte in name.encode("utf-8"):
+        key = (key * 37 + byte) & _UINT32
+    start = (0xDEADBEEF + (2 << 2) + 13) & _UINT32
+    state = [(start + key) & _UINT32, start, start]
+    for x, y, k in _FINAL_MIX:
+        rotated = ((state[y] << k) | (state[y] >> (32 - k))) & _UINT32
+        state[x] = ((state[x] ^ state[y]) - rotated) & _UINT32
+    return state[2]
+
+
+def object_key(random_id: int) -> np.float32:
+    """What Cycles' Object Info "Random" output gives for an object with this random id:
+    ``float(random_id) * (1 / (float)0xFFFFFFFF)``, and that float is exactly 2^-32."""
+    return np.float32(random_id & _UINT32) * np.float32(2.0 ** -32)
+
+
+@dataclass
+class ObjectTransforms:
+    """Every object and instance of one frame that can be hit, by its key (``object_key``)."""
+
+    keys: np.ndarray  # (K,) float32, sorted, unique
+    matrices: np.ndarray  # (K, 4, 4) float64 world matrices; NaN where two objects share a key
+
+    def find(self, keys: np.ndarray) -> np.ndarray:
+        """Index of each key in this table, -1 where it is absent (and for NaN)."""
+        if len(self.keys) == 0:
+            return np.full(np.shape(keys), -1, np.int64)
+        index = np.minimum(np.searchsorted(self.keys, keys), len(self.keys) - 1)
+        return np.where(self.keys[index] == keys, index, -1)
+
+    @property
+    def ambiguous(self) -> np.ndarray:
+        return np.isnan(self.matrices[:, 0, 0])
+
+
+def object_transforms(depsgraph: Any) -> ObjectTransforms:
+    """The world matrix of every object and instance in ``depsgraph``, by the value the
+    Object Info "Random" output has on it in Cycles.
+
+    Cycles gives an instance the random id Blender gives it (``DepsgraphObjectInstance.random_id``)
+    and any other object the hash of its name. Float keys of different objects can coincide
+    (the id is rounded to 24 bits); such keys are kept but marked ambiguous.
+    """
+    keys: list[np.float32] = []
+    matrices: list[np.ndarray] = []
+    for instance in depsgraph.object_instances:
+        obj = instance.object
+        if obj.type in _NO_SURFACE:
+            continue
+        random_id = instance.random_id if instance.is_instance else cycles_name_hash(obj.name)
+        keys.append(object_key(random_id))
+        matrices.append(np.array(instance.matrix_world, dtype=np.float64))
+    if not keys:
+        return ObjectTransforms(np.empty(0, np.float32), np.empty((0, 4, 4)))
+    all_keys = np.array(keys, np.float32)
+    unique, first, counts = np.unique(all_keys, return_index=True, return_counts=True)
+    unique_matrices = np.stack(matrices)[first]
+    unique_matrices[counts > 1] = np.nan
+    return ObjectTransforms(unique, unique_matrices)
+
+
+@dataclass
+class FrameGeometry:
+    """What motion needs of one frame. Without the object fields only the camera moves."""
+
+    camera: Camera
+    depth: np.ndarray  # (H, W) Cycles' planar Z pass of the sample at offset 0
+    #: (H, W) the Object Info "Random" value of the object hit by the sample at offset 0, NaN
+    #: where unknown (a miss, a surface without our AOVs).
+    object_key: np.ndarray | None = None
+    object_local: np.ndarray | None = None  # (H, W, 3) that hit point in object space
+    transforms: ObjectTransforms | None = None
+
+
+def _object_to_camera(camera: Camera, matrices: np.ndarray) -> np.ndarray:
+    """(K, 4, 4): each object's space -> this camera's space."""
+    return np.einsum("ij,kjl->kil", camera.world_to_camera, matrices)
+
+
+def _transform(matrices: np.ndarray, index: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """matrices[index[n]] applied to the points (N, 3), giving homogeneous (N, 4); one column
+    at a time, so memory stays O(N) rather than a (N, 4, 4) gather."""
+    out = matrices[index, :, 3].copy()
+    for j in range(3):
+        out += matrices[index, :, j] * points[:, j:j + 1]
+    return out
+
+
+def scene_motion(current: FrameGeometry,
+                 previous: FrameGeometry | None) -> tuple[np.ndarray, np.ndarray]:
+    """Motion (H, W, 2) into the previous frame and validity (H, W), float32, with moving objects.
+
+    Every pixel starts with the camera-only motion of ``camera_motion``. Where the sample at
+    offset 0 hit an object whose world matrix changed since the previous frame, its hit point
+    p (object space) is reprojected through the object instead: motion = P_prev(M_prev p) -
+    P(M p), valid when M_prev p lands on screen, in front of the previous camera, at the depth
+    the previous frame saw there. Pixels on an object that did not exist in the previous frame
+    are invalid. Objects whose key two objects share keep the camera-only motion.
+    """
+    motion, valid = camera_motion(current.camera, current.depth,
+                                  previous.camera if previous else None,
+                                  previous.depth if previous else None)
+    if (previous is None or previous.depth.shape != valid.shape
+            or current.object_key is None or current.object_local is None
+            or current.transforms is None or previous.transforms is None
+            or len(current.transforms.keys) == 0):
+        return motion, valid
+    now, before = current.transforms, previous.transforms
+    if len(before.keys) == 0:  # index 0 below must exist; nothing will be found in it
+        before = ObjectTransforms(np.full(1, np.nan, np.float32), np.full((1, 4, 4), np.nan))
+    # Per key of this frame: where it is in the previous frame's table, and what happened.
+    before_index = before.find(now.keys)
+    known_now = ~now.ambiguous
+    absent_before = before_index < 0
+    known_before = ~absent_before & ~before.ambiguous[np.maximum(before_index, 0)]
+    previous_matrices = before.matrices[np.maximum(before_index, 0)]
+    moved = known_now & known_before & np.any(previous_matrices != now.matrices, axis=(1, 2))
+
+    index = now.find(current.object_key)
+    has_key = index >= 0
+    key_index = np.maximum(index, 0)
+    appeared = has_key & known_now[key_index] & absent_before[key_index]
+    valid[appeared] = 0.0
+
+    moving = has_key & moved[key_index]
+    if not moving.any():
+        return motion, valid
+    rows, cols = np.nonzero(moving)
+    keys = index[rows, cols]
+    local = current.object_local[rows, cols].astype(np.float64)
+    here = _transform(_object_to_camera(current.camera, now.matrices), keys, local)
+    there = _transform(_object_to_camera(previous.camera, previous_matrices), keys, local)
+    x_now, y_now = _camera_to_pixels(current.camera, here)
+    x_before, y_before = _camera_to_pixels(previous.camera, there)
+    object_motion = np.stack([x_before - x_now, y_before - y_now], axis=-1)
+    expected_depth = -there[:, 2]
+    width, height = current.camera.width, current.camera.height
+    visible = ((x_before >= 0) & (x_before < width) & (y_before >= 0) & (y_before < height)
+               & (there[:, 2] < 0.0) & np.isfinite(object_motion).all(axis=-1)
+               & _seen_before(x_before, y_before, expected_depth,
+                              np.zeros(len(keys), bool), previous.depth))
+    object_motion[~np.isfinite(object_motion)] = 0.0
+    motion[rows, cols] = object_motion
+    valid[rows, cols] = visible
+    return motion, valid

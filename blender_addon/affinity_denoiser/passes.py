@@ -17,6 +17,13 @@ from .overrides import Overrides
 AOV_DISTANCE = "affinity_distance"
 #: Shader AOV written by materials.py: (roughness, metallic, transmission) of the first hit.
 AOV_SURFACE = "affinity_surface"
+#: Shader AOV written by materials.py: Object Info "Random" of the first hit (names its object).
+AOV_OBJECT = "affinity_object"
+#: Shader AOV written by materials.py: the first hit's position in its object's space.
+AOV_LOCAL = "affinity_local"
+#: The AOVs materials.py writes, with their view layer AOV types.
+SHADER_AOVS = ((AOV_DISTANCE, "VALUE"), (AOV_SURFACE, "COLOR"), (AOV_OBJECT, "VALUE"),
+               (AOV_LOCAL, "COLOR"))
 
 #: role -> the names that role's pass had in the Blender versions we know, newest first.
 PASS_NAMES: dict[str, tuple[str, ...]] = {
@@ -31,6 +38,8 @@ PASS_NAMES: dict[str, tuple[str, ...]] = {
     "denoising_depth": ("Denoising Depth",),
     "aov_distance": (AOV_DISTANCE,),
     "aov_surface": (AOV_SURFACE,),
+    "aov_object": (AOV_OBJECT,),
+    "aov_local": (AOV_LOCAL,),
 }
 #: Roles that may be missing from a result (older Cycles); features.py has a fallback.
 OPTIONAL_ROLES = frozenset({"denoising_depth"})
@@ -65,11 +74,10 @@ def shader_aovs(view_layer: Any) -> Iterator[None]:
 
     An AOV of the same name that the user already has is used as it is and left in place.
     """
-    wanted = ((AOV_DISTANCE, "VALUE"), (AOV_SURFACE, "COLOR"))
     existing = {aov.name: aov for aov in view_layer.aovs}
     added = []
     try:
-        for name, kind in wanted:
+        for name, kind in SHADER_AOVS:
             if name in existing:
                 if existing[name].type != kind:
                     raise PassError(f"the view layer has an AOV '{name}' of type "

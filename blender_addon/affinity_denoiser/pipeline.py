@@ -76,6 +76,7 @@ class Timings:
     sub_renders: list[float] = field(default_factory=list)  # including reading the passes
     read_passes: list[float] = field(default_factory=list)
     features: list[float] = field(default_factory=list)
+    motion: list[float] = field(default_factory=list)  # object matrices, then the vectors
     denoise: list[float] = field(default_factory=list)
     present: list[float] = field(default_factory=list)
     write: list[float] = field(default_factory=list)
@@ -198,17 +199,21 @@ class DenoiseRender:
         import bpy
 
         scene, spp = self.scene, self.settings.samples_per_frame
-        previous: tuple[motion.Camera, np.ndarray] | None = None
+        previous: motion.FrameGeometry | None = None
         names: dict[str, str] | None = None
         done = 0
         for frame_number, frame in enumerate(self.frames):
             scene.frame_set(frame)
-            camera = motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            camera = motion.scene_camera(scene, depsgraph)
+            start = time.perf_counter()
+            transforms = motion.object_transforms(depsgraph)
+            self.timings.motion.append(time.perf_counter() - start)
             ray_start = motion.ray_start_distance(camera)
             samples = np.empty((camera.height, camera.width, spp, features.FEATURE_COUNT),
                                np.float32)
             sums: dict[str, np.ndarray] = {}
-            depth = None
+            geometry = None
             for sample in range(spp):
                 self.progress(done, self.total_steps,
                               f"frame {frame} ({frame_number + 1}/{len(self.frames)}), "
@@ -221,7 +226,7 @@ class DenoiseRender:
                     passes.by_role(captured, names), camera, ray_start)
                 self.timings.features.append(time.perf_counter() - start)
                 if sample == 0:  # Cycles writes Z for the sample at offset 0 only
-                    depth = captured[names["depth"]][..., 0].copy()
+                    geometry = self._geometry(captured, names, camera, transforms)
                 for name, image in captured.items():
                     if name in sums:
                         sums[name] += image
@@ -229,14 +234,28 @@ class DenoiseRender:
                         sums[name] = image.copy()
                 done += 1
                 yield done
-            assert depth is not None
-            motion_vectors, valid = motion.camera_motion(
-                camera, depth, *(previous if previous else (None, None)))
-            previous = (camera, depth)
+            assert geometry is not None
+            start = time.perf_counter()
+            motion_vectors, valid = motion.scene_motion(geometry, previous)
+            self.timings.motion.append(time.perf_counter() - start)
+            previous = geometry
             frame_data = features.frame_dict(samples, motion_vectors, valid, camera,
                                              scene.name, frame, scene.cycles.seed)
             mean = {name: total / np.float32(spp) for name, total in sums.items()}
             self._finish_frame(denoiser, frame, frame_data, mean, overrides, use_compositing)
+
+    @staticmethod
+    def _geometry(captured: dict[str, np.ndarray], names: dict[str, str], camera: motion.Camera,
+                  transforms: motion.ObjectTransforms) -> motion.FrameGeometry:
+        """What motion needs of the sample at offset 0 (copies: the passes are views)."""
+        written = captured[names["aov_distance"]][..., 0] > 0.0  # our AOVs reached the hit
+        return motion.FrameGeometry(
+            camera=camera,
+            depth=captured[names["depth"]][..., 0].copy(),
+            object_key=np.where(written, captured[names["aov_object"]][..., 0], np.nan),
+            object_local=captured[names["aov_local"]][..., :3].copy(),
+            transforms=transforms,
+        )
 
     def _sub_render(self, sample: int) -> dict[str, np.ndarray]:
         import bpy

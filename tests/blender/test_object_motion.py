@@ -1,0 +1,352 @@
+"""Motion vectors that follow moving objects: a cube translating 0.2 units in x per frame, a cube
+turning 10 degrees per frame with a parented sphere, an object that appears at frame 2, a static
+floor; a static and a moving camera. The pipeline's motion is checked against the analytic
+motion of each sample's hit point and against Cycles' Vector pass of the same sample."""
+
+from __future__ import annotations
+
+import math
+import types
+from typing import Any
+
+import bpy
+import numpy as np
+import pytest
+
+from conftest import capture, material_snapshot
+from affinity_denoiser import materials, motion, passes, pipeline
+
+WIDTH, HEIGHT, FRAMES, SPP = 64, 48, 3, 4
+STEP = 0.2  # the mover's x per frame
+TURN = math.radians(10.0)  # the spinner's z rotation per frame
+SPINNER_CENTRE = np.array([1.3, 0.0, 0.6])
+# Object indices (Cycles' Object Index pass tells the test which object each pixel shows).
+FLOOR, MOVER, SPINNER, CHILD, POPPER = 1, 2, 3, 4, 5
+#: Motion error allowed against the Vector pass and the analytic motion, in pixels.
+TOLERANCE_PX = 1e-3
+
+
+def _material(name: str, color: tuple[float, float, float]) -> bpy.types.Material:
+    material = bpy.data.materials.new(name)
+    if material.node_tree is None:  # Blender < 5 creates the node tree on request
+        material.use_nodes = True
+    material.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = color + (1.0,)
+    return material
+
+
+def _mesh(primitive: str, name: str, material: bpy.types.Material, index: int,
+          **kwargs: Any) -> bpy.types.Object:
+    getattr(bpy.ops.mesh, primitive)(**kwargs)
+    obj = bpy.context.object
+    obj.name = name
+    obj.data.materials.append(material)
+    obj.pass_index = index
+    return obj
+
+
+def build_scene(moving_camera: bool) -> bpy.types.Scene:
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    render = scene.render
+    render.engine = "CYCLES"
+    render.resolution_x, render.resolution_y, render.resolution_percentage = WIDTH, HEIGHT, 100
+    render.threads_mode, render.threads = "FIXED", 2
+    scene.cycles.device = "CPU"
+    scene.cycles.samples = SPP
+    scene.frame_start, scene.frame_end = 1, FRAMES
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    if world.node_tree is None:
+        world.use_nodes = True
+    world.node_tree.nodes["Background"].inputs[0].default_value = (0.05, 0.07, 0.1, 1.0)
+
+    _mesh("primitive_plane_add", "Floor", _material("Floor", (0.8, 0.6, 0.4)), FLOOR, size=20)
+    red = _material("Red", (0.8, 0.1, 0.1))
+    mover = _mesh("primitive_cube_add", "Mover", red, MOVER, size=1.0)
+    spinner = _mesh("primitive_cube_add", "Spinner", _material("Green", (0.1, 0.8, 0.1)),
+                    SPINNER, size=0.8, location=tuple(SPINNER_CENTRE))
+    child = _mesh("primitive_uv_sphere_add", "Child", red, CHILD, radius=0.25, segments=12,
+                  ring_count=6)
+    child.parent = spinner
+    child.location = (0.0, -0.7, 0.0)
+    popper = _mesh("primitive_cube_add", "Popper", red, POPPER, size=0.4,
+                   location=(-0.2, -1.0, 1.6))
+    bpy.ops.object.light_add(type="SUN", rotation=(0.5, 0.3, 0.0))
+    bpy.context.object.data.energy = 3.0
+    camera = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+    scene.collection.objects.link(camera)
+    scene.camera = camera
+    for i in range(FRAMES):
+        frame = 1 + i  # every frame is keyed, so the values there are exact
+        mover.location = (-1.2 + STEP * i, 0.0, 0.5)
+        mover.keyframe_insert("location", frame=frame)
+        spinner.rotation_euler = (0.0, 0.0, TURN * i)
+        spinner.keyframe_insert("rotation_euler", frame=frame)
+        popper.hide_render = popper.hide_viewport = frame == 1  # appears at frame 2
+        popper.keyframe_insert("hide_render", frame=frame)
+        popper.keyframe_insert("hide_viewport", frame=frame)
+        camera.location = (0.15 * i if moving_camera else 0.0, -7.0, 1.5)
+        camera.rotation_euler = (math.radians(85.0), 0.0,
+                                 math.radians(1.5 * i) if moving_camera else 0.0)
+        camera.keyframe_insert("location", frame=frame)
+        camera.keyframe_insert("rotation_euler", frame=frame)
+    scene.frame_set(1)
+    return scene
+
+
+def _previous_position(index: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Where the world points (N, 3) on the objects ``index`` were one frame earlier."""
+    before = points.copy()
+    before[index == MOVER] -= np.array([STEP, 0.0, 0.0])
+    turning = (index == SPINNER) | (index == CHILD)  # the child turns with its parent
+    c, s = math.cos(-TURN), math.sin(-TURN)
+    rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    before[turning] = (points[turning] - SPINNER_CENTRE) @ rotation.T + SPINNER_CENTRE
+    return before
+
+
+def _first_sample_passes(scene: Any) -> None:
+    """The sample the pipeline renders first, with the Vector, Position and Object Index passes;
+    persistent data and motion blur off (the Vector pass needs both)."""
+    layer = scene.view_layers[0]
+    if pipeline.uses_sample_subsets(scene.cycles):
+        scene.cycles.samples = SPP
+        scene.cycles.use_sample_subset = True
+        scene.cycles.sample_subset_length = 1
+    else:
+        scene.cycles.samples = 1
+    scene.cycles.sample_offset = 0
+    scene.render.use_persistent_data = False
+    scene.render.use_motion_blur = False
+    layer.use_pass_vector = layer.use_pass_z = True
+    layer.use_pass_position = layer.use_pass_object_index = True
+
+
+def _object_index(captured: dict[str, np.ndarray]) -> np.ndarray:
+    """Cycles' Object Index pass (named IndexOB before Blender 5) as integers."""
+    name = "Object Index" if "Object Index" in captured else "IndexOB"
+    return np.rint(captured[name][..., 0]).astype(int)
+
+
+def _run(moving_camera: bool) -> dict[str, Any]:
+    scene = build_scene(moving_camera)
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
+                                 pipeline.Settings(samples_per_frame=SPP))
+    job.keep_frames = True
+    job.run()
+    frames: dict[int, dict[str, Any]] = {}
+    for frame in job.frames:
+        scene.frame_set(frame)
+        camera = motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())
+        captured = capture(scene, _first_sample_passes)
+        frames[frame] = {
+            "camera": camera,
+            "index": _object_index(captured),
+            "position": captured["Position"][..., :3].astype(np.float64),
+            "hit": captured["Depth"][..., 0] < motion.MISS_DEPTH,
+            # Blender's Vector pass: (x, y) motion into the previous frame, y up.
+            "vector": np.stack([captured["Vector"][..., 0], -captured["Vector"][..., 1]], -1),
+        }
+    for result in job.results:
+        frames[result.frame]["motion"] = result.frame_data["motion"]
+        frames[result.frame]["valid"] = result.frame_data["valid"]
+    return frames
+
+
+@pytest.fixture(scope="module")
+def static_camera() -> dict[str, Any]:
+    return _run(moving_camera=False)
+
+
+@pytest.fixture(scope="module")
+def moving_camera() -> dict[str, Any]:
+    return _run(moving_camera=True)
+
+
+def _analytic_motion(frames: dict[int, dict[str, Any]], frame: int) -> np.ndarray:
+    """The motion of each pixel's hit point (Cycles' Position pass) from the known animation."""
+    now, before = frames[frame], frames[frame - 1]
+    points = now["position"].reshape(-1, 3)
+    homogeneous = np.concatenate([points, np.ones((len(points), 1))], axis=1)
+    previous = np.concatenate(
+        [_previous_position(now["index"].ravel(), points), np.ones((len(points), 1))], axis=1)
+    x, y, _ = motion.project(now["camera"], homogeneous)
+    x_before, y_before, _ = motion.project(before["camera"], previous)
+    return np.stack([x_before - x, y_before - y], -1).reshape(HEIGHT, WIDTH, 2)
+
+
+def _check_moving_objects(frames: dict[int, dict[str, Any]]) -> None:
+    for frame in (2, 3):
+        now = frames[frame]
+        analytic = _analytic_motion(frames, frame)
+        for index in (MOVER, SPINNER, CHILD):
+            on = now["index"] == index
+            assert on.sum() > 20, f"object {index} covers too few pixels"
+            ours = now["motion"][on]
+            assert np.abs(ours - analytic[on]).max() < TOLERANCE_PX
+            assert np.abs(ours - now["vector"][on]).max() < TOLERANCE_PX
+            # Camera-only motion would be far off: the objects really move on screen.
+            camera_only = np.linalg.norm(analytic[on] - _camera_only(frames, frame)[on], axis=-1)
+            assert camera_only.mean() > 0.5
+            assert now["valid"][on].mean() > 0.8
+
+
+def _camera_only(frames: dict[int, dict[str, Any]], frame: int) -> np.ndarray:
+    now, before = frames[frame], frames[frame - 1]
+    points = np.concatenate([now["position"], np.ones((HEIGHT, WIDTH, 1))], axis=-1)
+    x, y, _ = motion.project(now["camera"], points)
+    x_before, y_before, _ = motion.project(before["camera"], points)
+    return np.stack([x_before - x, y_before - y], -1)
+
+
+def test_moving_objects_follow_the_analytic_motion_and_the_vector_pass(
+        static_camera: dict[str, Any]) -> None:
+    _check_moving_objects(static_camera)
+
+
+def test_static_surfaces_and_the_background_do_not_move(static_camera: dict[str, Any]) -> None:
+    for frame in (2, 3):
+        now = static_camera[frame]
+        still = (now["index"] == FLOOR) | ~now["hit"]
+        assert still.sum() > 0.5 * WIDTH * HEIGHT
+        assert np.abs(now["motion"][still]).max() < 1e-4
+
+
+def test_uncovered_pixels_are_invalid(static_camera: dict[str, Any]) -> None:
+    for frame in (2, 3):
+        now, before = static_camera[frame], static_camera[frame - 1]
+        # The camera stands still: the floor or sky seen now was hidden by a moving object.
+        static_now = (now["index"] == FLOOR) | ~now["hit"]
+        uncovered = static_now & np.isin(before["index"], (MOVER, SPINNER, CHILD, POPPER))
+        assert uncovered.sum() >= 10
+        assert not now["valid"][uncovered].any()
+        assert now["valid"][static_now & ~uncovered].mean() > 0.95
+
+
+def test_an_object_that_appears_has_no_history(static_camera: dict[str, Any]) -> None:
+    appeared = static_camera[2]["index"] == POPPER
+    assert appeared.sum() > 20 and not static_camera[2]["valid"][appeared].any()
+    # One frame later it has a history (it does not move: camera-only motion, zero here).
+    there = static_camera[3]["index"] == POPPER
+    assert static_camera[3]["valid"][there].mean() > 0.9
+    assert np.abs(static_camera[3]["motion"][there]).max() < 1e-4
+
+
+def test_a_moving_camera_with_moving_objects(moving_camera: dict[str, Any]) -> None:
+    _check_moving_objects(moving_camera)
+    for frame in (2, 3):
+        now = moving_camera[frame]
+        hit = now["hit"] & ((now["index"] != POPPER) | (frame != 2))  # new: no Cycles motion
+        assert np.abs(now["motion"] - now["vector"])[hit].max() < TOLERANCE_PX
+        floor = now["index"] == FLOOR
+        assert np.linalg.norm(now["motion"][floor], axis=-1).mean() > 0.3  # the camera moves
+
+
+def _user_state(scene: Any) -> dict[str, Any]:
+    layer = scene.view_layers[0]
+    return {
+        "materials": material_snapshot(),
+        "aovs": [(a.name, a.type) for a in layer.aovs],
+        "pass_index": {o.name: o.pass_index for o in bpy.data.objects},
+        "passes": {name: getattr(layer, name) for name in dir(layer)
+                   if name.startswith("use_pass_")},
+        "denoising_passes": layer.cycles.denoising_store_passes,
+        "motion_blur": scene.render.use_motion_blur,
+        "persistent": scene.render.use_persistent_data,
+    }
+
+
+def test_user_materials_aovs_and_passes_are_restored_exactly() -> None:
+    scene = build_scene(moving_camera=False)
+    layer = scene.view_layers[0]
+    mine = layer.aovs.add()  # the user's own AOV, written by a node of their own
+    mine.name, mine.type = "user_mask", "VALUE"
+    tree = bpy.data.materials["Red"].node_tree
+    info = tree.nodes.new("ShaderNodeObjectInfo")
+    output = tree.nodes.new("ShaderNodeOutputAOV")
+    output.aov_name = "user_mask"
+    tree.links.new(info.outputs["Object Index"], output.inputs["Value"])
+    layer.use_pass_object_index = True
+    scene.render.use_motion_blur = True
+    before = _user_state(scene)
+
+    job = pipeline.DenoiseRender(scene, layer, [1, 2], pipeline.Settings(samples_per_frame=2))
+    job.run()
+    assert _user_state(scene) == before
+
+    cancelled = pipeline.DenoiseRender(scene, layer, [1, 2], pipeline.Settings(samples_per_frame=2))
+    steps = cancelled.steps()
+    next(steps)
+    steps.close()
+    assert _user_state(scene) == before
+
+
+def test_motion_blur_keeps_object_motion() -> None:
+    """With motion blur on, Cycles' Vector pass is zero; the hit point in object space does not
+    depend on the shutter time, so the mover still gets its motion."""
+    scene = build_scene(moving_camera=False)
+    scene.render.use_motion_blur = True
+    layer = scene.view_layers[0]
+
+    def one_sample(s: Any) -> None:
+        s.cycles.samples = 1
+        layer.use_pass_z = layer.use_pass_object_index = layer.use_pass_vector = True
+
+    geometry, captured = {}, {}
+    with passes.shader_aovs(layer), materials.surface_aovs(bpy.data):
+        for frame in (1, 2):
+            scene.frame_set(frame)
+            depsgraph = bpy.context.evaluated_depsgraph_get()
+            captured[frame] = capture(scene, one_sample)
+            names = {role: passes.PASS_NAMES[role][0]
+                     for role in ("depth", "aov_distance", "aov_object", "aov_local")}
+            geometry[frame] = pipeline.DenoiseRender._geometry(
+                captured[frame], names, motion.scene_camera(scene, depsgraph),
+                motion.object_transforms(depsgraph))
+    assert not captured[2]["Vector"].any()
+    ours, valid = motion.scene_motion(geometry[2], geometry[1])
+    mover = _object_index(captured[2]) == MOVER
+    # The mover moves along the camera's x axis: a point at planar depth z moves by
+    # -STEP * focal length (pixels) / z, whatever the shutter time it was hit at.
+    camera = bpy.data.cameras["Camera"]
+    focal_px = camera.lens / camera.sensor_width * WIDTH
+    expected = -STEP * focal_px / geometry[2].depth[mover]
+    assert np.abs(ours[mover][:, 0] - expected).max() < TOLERANCE_PX
+    assert np.abs(ours[mover][:, 1]).max() < TOLERANCE_PX
+    assert valid[mover].mean() > 0.8
+
+
+def test_shared_keys_fall_back_to_camera_motion() -> None:
+    """Two objects whose Object Info Random coincide cannot be told apart: their pixels keep
+    the camera-only motion."""
+    def instance(name: str, x: float) -> Any:
+        matrix = np.eye(4)
+        matrix[0, 3] = x
+        return types.SimpleNamespace(object=types.SimpleNamespace(name=name, type="MESH"),
+                                     is_instance=True, random_id=12345, matrix_world=matrix)
+
+    table = motion.object_transforms(types.SimpleNamespace(
+        object_instances=[instance("A", 0.0), instance("B", 1.0)]))
+    assert len(table.keys) == 1 and table.ambiguous.all()
+    camera = motion.Camera(np.eye(4), np.eye(4), 4, 3, True, 0.0)
+    key = np.full((3, 4), motion.object_key(12345), np.float32)
+    depth = np.full((3, 4), 1.0)
+    geometry = motion.FrameGeometry(camera, depth, key, np.zeros((3, 4, 3)), table)
+    moved = motion.object_transforms(types.SimpleNamespace(
+        object_instances=[instance("A", 0.5), instance("B", 2.0)]))
+    ours = motion.scene_motion(motion.FrameGeometry(camera, depth, key, np.zeros((3, 4, 3)), moved),
+                               geometry)
+    expected = motion.camera_motion(camera, depth, camera, depth)
+    np.testing.assert_array_equal(ours[0], expected[0])
+    np.testing.assert_array_equal(ours[1], expected[1])
+
+
+def test_cycles_name_hash_gives_the_object_info_random_value() -> None:
+    scene = build_scene(moving_camera=False)
+    layer = scene.view_layers[0]
+    with passes.shader_aovs(layer), materials.surface_aovs(bpy.data):
+        captured = capture(scene, lambda s: setattr(s.cycles, "samples", 1))
+    seen = set(np.unique(captured[passes.AOV_OBJECT][..., 0]).tolist()) - {0.0}
+    expected = {float(motion.object_key(motion.cycles_name_hash(name)))
+                for name in ("Floor", "Mover", "Spinner", "Child")}
+    assert seen == expected
