@@ -39,6 +39,17 @@ constexpr float kMaxExponent = 30.0f;
 constexpr std::array<float, 3> kAtrousKernel{0.375f, 0.25f, 0.0625f};
 constexpr int kSpatialVarianceRadius = 3;  // the 7x7 bilateral estimate
 
+// What the reprojection reads of the previous frame, interleaved per pixel (one cache line per
+// bilinear tap instead of eleven planes).
+namespace previous {
+inline constexpr int kColour = 0;   // 3: illumination after the feedback pass
+inline constexpr int kMoments = 3;  // 2: integrated luminance moments
+inline constexpr int kHistory = 5;  // 1: history length
+inline constexpr int kDepth = 6;    // 1
+inline constexpr int kNormal = 7;   // 4: normal and miss marker
+inline constexpr int kSize = 12;
+}  // namespace previous
+
 inline Vec8f load8(const float* p) {
     Vec8f v;
     std::memcpy(&v, p, sizeof v);
@@ -147,11 +158,8 @@ struct Svgf::State {
     std::array<std::array<std::vector<float>, 3>, 2> colour;
     std::array<std::vector<float>, 2> variance, moments;
     std::vector<float> history, luminanceScale;
-    // The previous frame, read by the reprojection.
-    std::vector<float> previousDepth, previousHistory;
-    std::array<std::vector<float>, 4> previousNormal;
-    std::array<std::vector<float>, 3> previousColour;
-    std::array<std::vector<float>, 2> previousMoments;
+    // The previous frame, read by the reprojection: previous::kSize floats per pixel, unpadded.
+    std::vector<float> previousFrame;
 
     explicit State(const SvgfSettings& s) : settings(s), normalWeight(s.sigmaNormal) {}
 
@@ -163,6 +171,7 @@ struct Svgf::State {
     void prefilterVariance(const std::vector<float>& varianceIn);
     void atrousPass(int step, int from, int to);
     std::vector<float> remodulate(int from) const;
+    void keepColour(int from);
     void keepHistory();
 
     CentreGuides centreGuides(std::size_t i) const {
@@ -213,25 +222,20 @@ void Svgf::State::allocate(int width, int height) {
     layout = next;
     const std::size_t n = layout.size();
     // Zero everywhere: the padding is never written afterwards and must stay 0.
-    for (std::vector<float>* plane :
-         {&depth, &depthScale, &depthWidth, &inside, &history, &luminanceScale, &previousDepth, &previousHistory})
+    for (std::vector<float>* plane : {&depth, &depthScale, &depthWidth, &inside, &history, &luminanceScale})
         plane->assign(n, 0.0f);
-    for (int c = 0; c < 4; ++c) {
-        normal[c].assign(n, 0.0f);
-        previousNormal[c].assign(n, 0.0f);
-    }
+    for (int c = 0; c < 4; ++c) normal[c].assign(n, 0.0f);
     for (int c = 0; c < 3; ++c) {
         albedo[c].assign(n, 0.0f);
         emitted[c].assign(n, 0.0f);
         colour[0][c].assign(n, 0.0f);
         colour[1][c].assign(n, 0.0f);
-        previousColour[c].assign(n, 0.0f);
     }
     for (int k = 0; k < 2; ++k) {
         variance[k].assign(n, 0.0f);
         moments[k].assign(n, 0.0f);
-        previousMoments[k].assign(n, 0.0f);
     }
+    previousFrame.assign(std::size_t(width) * std::size_t(height) * previous::kSize, 0.0f);
     for (int y = 0; y < height; ++y) std::fill_n(inside.begin() + std::ptrdiff_t(layout.at(0, y)), width, 1.0f);
 }
 
@@ -357,11 +361,15 @@ void Svgf::State::computeDepthGradients() {
 void Svgf::State::reprojectAndAccumulate(const SampleFrame& frame, bool useHistory) {
     const int width = layout.width, height = layout.height;
     const float cap = float(settings.historyCap);
+    const float* past = previousFrame.data();
+    float* const out[3] = {colour[0][0].data(), colour[0][1].data(), colour[0][2].data()};
+    float *moment1 = moments[0].data(), *moment2 = moments[1].data(), *lengths = history.data();
+    float* varianceOut = variance[0].data();
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {
             const std::size_t i = layout.at(x, y);
-            float c[3] = {colour[0][0][i], colour[0][1][i], colour[0][2][i]};
+            float c[3] = {out[0][i], out[1][i], out[2][i]};
             const float l = luminance(c[0], c[1], c[2]);
             float m[2] = {l, l * l};
 
@@ -373,21 +381,22 @@ void Svgf::State::reprojectAndAccumulate(const SampleFrame& frame, bool useHisto
                 py < float(height)) {
                 const int x0 = int(std::floor(px)), y0 = int(std::floor(py));
                 const float fx = px - float(x0), fy = py - float(y0);
-                const float tolerance =
-                    settings.reprojectDepthTolerance * (depthWidth[i] + kReprojectRelativeDepth * depth[i]);
+                const float z = depth[i];
+                const float tolerance = settings.reprojectDepthTolerance * (depthWidth[i] + kReprojectRelativeDepth * z);
+                const float n[4] = {normal[0][i], normal[1][i], normal[2][i], normal[3][i]};
                 for (int tap = 0; tap < 4; ++tap) {
                     const int tx = x0 + (tap & 1), ty = y0 + (tap >> 1);
                     const float w = ((tap & 1) ? fx : 1.0f - fx) * ((tap >> 1) ? fy : 1.0f - fy);
                     if (tx < 0 || tx >= width || ty < 0 || ty >= height || w <= 0.0f) continue;
-                    const std::size_t j = layout.at(tx, ty);
-                    if (std::abs(previousDepth[j] - depth[i]) > tolerance) continue;
+                    const float* p = past + (std::size_t(ty) * std::size_t(width) + std::size_t(tx)) * previous::kSize;
+                    if (std::abs(p[previous::kDepth] - z) > tolerance) continue;
                     float cosine = 0.0f;
-                    for (int k = 0; k < 4; ++k) cosine += normal[k][i] * previousNormal[k][j];
+                    for (int k = 0; k < 4; ++k) cosine += n[k] * p[previous::kNormal + k];
                     if (cosine < settings.reprojectNormalCosine) continue;
                     sumWeight += w;
-                    for (int k = 0; k < 3; ++k) sumColour[k] += w * previousColour[k][j];
-                    for (int k = 0; k < 2; ++k) sumMoments[k] += w * previousMoments[k][j];
-                    sumHistory += w * previousHistory[j];
+                    for (int k = 0; k < 3; ++k) sumColour[k] += w * p[previous::kColour + k];
+                    for (int k = 0; k < 2; ++k) sumMoments[k] += w * p[previous::kMoments + k];
+                    sumHistory += w * p[previous::kHistory];
                 }
             }
             float length = 1.0f;
@@ -400,11 +409,11 @@ void Svgf::State::reprojectAndAccumulate(const SampleFrame& frame, bool useHisto
                 for (int k = 0; k < 3; ++k) c[k] = alpha * c[k] + (1.0f - alpha) * sumColour[k] * inverse;
                 for (int k = 0; k < 2; ++k) m[k] = alphaMoments * m[k] + (1.0f - alphaMoments) * sumMoments[k] * inverse;
             }
-            for (int k = 0; k < 3; ++k) colour[0][k][i] = c[k];
-            moments[0][i] = m[0];
-            moments[1][i] = m[1];
-            history[i] = length;
-            variance[0][i] = std::max(0.0f, m[1] - m[0] * m[0]);
+            for (int k = 0; k < 3; ++k) out[k][i] = c[k];
+            moment1[i] = m[0];
+            moment2[i] = m[1];
+            lengths[i] = length;
+            varianceOut[i] = std::max(0.0f, m[1] - m[0] * m[0]);
         }
 }
 
@@ -450,6 +459,8 @@ void Svgf::State::estimateSpatialVariance() {
 void Svgf::State::prefilterVariance(const std::vector<float>& varianceIn) {
     const int width = layout.width, height = layout.height;
     constexpr float kGaussian[2] = {0.5f, 0.25f};
+    const float *values = varianceIn.data(), *mask = inside.data();
+    float* scale = luminanceScale.data();
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x) {
@@ -458,13 +469,12 @@ void Svgf::State::prefilterVariance(const std::vector<float>& varianceIn) {
                 if (y + dy < 0 || y + dy >= height) continue;
                 for (int dx = -1; dx <= 1; ++dx) {
                     const std::size_t j = layout.at(x + dx, y + dy);
-                    const float w = kGaussian[std::abs(dx)] * kGaussian[std::abs(dy)] * inside[j];
-                    sum += w * varianceIn[j];
+                    const float w = kGaussian[std::abs(dx)] * kGaussian[std::abs(dy)] * mask[j];
+                    sum += w * values[j];
                     sumWeight += w;
                 }
             }
-            luminanceScale[layout.at(x, y)] =
-                1.0f / (settings.sigmaLuminance * std::sqrt(sum / sumWeight) + kLuminanceEpsilon);
+            scale[layout.at(x, y)] = 1.0f / (settings.sigmaLuminance * std::sqrt(sum / sumWeight) + kLuminanceEpsilon);
         }
 }
 
@@ -530,13 +540,32 @@ std::vector<float> Svgf::State::remodulate(int from) const {
     return out;
 }
 
-// The next frame's history besides the colour (kept by the feedback pass): the integrated
-// moments, history lengths and this frame's depth and normals.
+// The next frame's colour history: colour[from] into previousFrame.
+void Svgf::State::keepColour(int from) {
+    const int width = layout.width, height = layout.height;
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const std::size_t i = layout.at(x, y);
+            float* p = previousFrame.data() + (std::size_t(y) * std::size_t(width) + std::size_t(x)) * previous::kSize;
+            for (int c = 0; c < 3; ++c) p[previous::kColour + c] = colour[from][c][i];
+        }
+}
+
+// The rest of the next frame's history: integrated moments, history lengths, depth, normals.
 void Svgf::State::keepHistory() {
-    std::swap(previousMoments, moments);
-    std::swap(previousDepth, depth);
-    std::swap(previousNormal, normal);
-    previousHistory = history;  // history stays readable through historyLength()
+    const int width = layout.width, height = layout.height;
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) {
+            const std::size_t i = layout.at(x, y);
+            float* p = previousFrame.data() + (std::size_t(y) * std::size_t(width) + std::size_t(x)) * previous::kSize;
+            p[previous::kMoments] = moments[0][i];
+            p[previous::kMoments + 1] = moments[1][i];
+            p[previous::kHistory] = history[i];
+            p[previous::kDepth] = depth[i];
+            for (int k = 0; k < 4; ++k) p[previous::kNormal + k] = normal[k][i];
+        }
     hasHistory = true;
 }
 
@@ -557,13 +586,13 @@ std::vector<float> Svgf::denoise(const SampleFrame& frame) {
     // colour/variance ping-pong; the feedback pass's output (without passes, the integrated
     // colour) becomes the next frame's colour history.
     int current = 0;
-    if (s.settings.atrousIterations == 0) s.previousColour = s.colour[0];
+    if (s.settings.atrousIterations == 0) s.keepColour(0);
     for (int pass = 0; pass < s.settings.atrousIterations; ++pass) {
         s.atrousPass(1 << pass, current, 1 - current);
         current = 1 - current;
-        if (pass == s.settings.feedbackIteration) s.previousColour = s.colour[current];
+        if (pass == s.settings.feedbackIteration) s.keepColour(current);
     }
-    // colour[current] * albedo + emitted -> radiance; moments, history, depth, normals -> previous.
+    // colour[current] * albedo + emitted -> radiance; moments, history, depth, normals -> previousFrame.
     std::vector<float> out = s.remodulate(current);
     s.keepHistory();
     return out;
