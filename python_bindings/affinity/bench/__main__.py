@@ -135,6 +135,7 @@ def main(argv: list[str] | None = None) -> None:
     args = parse_arguments(argv)
     config = configure(args)
     started = time.perf_counter()
+    load_at_start = os.getloadavg()[0]
     out: pathlib.Path = args.out
     out.mkdir(parents=True, exist_ok=True)
     notices: list[str] = []
@@ -189,19 +190,23 @@ def main(argv: list[str] | None = None) -> None:
         report.write_text(out / "speed.md", "# Speed and memory\n\n" + speed_text)
 
     elapsed = time.perf_counter() - started
+    load = (load_at_start, os.getloadavg()[0])
     report.write_text(out / "results.md", results_markdown(argv, config, methods, results, points, speed_text,
-                                                          notices, elapsed))
+                                                          notices, elapsed, load))
     print(f"bench: done in {elapsed:.0f} s -> {out}", flush=True)
 
 
 def results_markdown(argv: list[str], config: Config, methods: list[Method], results: list[SequenceResult],
-                     points: dict, speed_text: str, notices: list[str], elapsed: float) -> str:
+                     points: dict, speed_text: str, notices: list[str], elapsed: float,
+                     load: tuple[float, float]) -> str:
     sequences = ", ".join(s.name for s in config.sequences)
     failure_cases = [s.name for s in config.sequences if s.failure_case]
     text = f"# Benchmark results ({config.name} configuration)\n\n"
     text += f"Command: `python -m affinity.bench {shlex.join(argv)}`, {elapsed:.0f} s, "
     text += f"{datetime.date.today().isoformat()}.  \n"
-    text += f"Machine: {machine_text()}; pyoidn {version('pyoidn')}, flip-evaluator {version('flip-evaluator')}.\n\n"
+    text += (f"Machine: {machine_text()}; 1-minute load average {load[0]:.1f} at the start, {load[1]:.1f} at the "
+             f"end (timings are wall-clock: other work on the machine inflates them); pyoidn {version('pyoidn')}, "
+             f"flip-evaluator {version('flip-evaluator')}.\n\n")
     text += (f"Sequences ({len(config.sequences)}): {sequences}; {config.frames} frames of "
              f"{config.width}x{config.height}, references of {config.reference_spp} spp. Each sequence is rendered "
              f"once at {config.render_spp} spp and an S-spp input is the first S samples of every pixel. Render "

@@ -26,7 +26,7 @@ class FrameResult:
     psnr: float
     flip: float
     temporal_error: float  # NaN on the first frame (no previous frame)
-    seconds: float         # wall time of the method's call on this frame
+    seconds: float         # wall time of the method's call on this frame (fastest of the timing runs)
 
 
 @dataclass
