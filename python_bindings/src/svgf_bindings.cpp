@@ -1,6 +1,8 @@
 // affinity._core.Svgf: the SVGF baseline of affinity/svgf.h on frame dicts.
 #include <pybind11/pybind11.h>
 
+#include <charconv>
+#include <cstdlib>
 #include <utility>
 #include <vector>
 
@@ -10,6 +12,18 @@
 namespace py = pybind11;
 
 namespace affinity {
+namespace {
+
+// A float setting as the double with its shortest decimal spelling: Python shows 0.2, not
+// 0.20000000298023224.
+double shown(float value) {
+    char text[32];
+    const auto end = std::to_chars(text, text + sizeof text - 1, value).ptr;
+    *end = '\0';
+    return std::strtod(text, nullptr);
+}
+
+}  // namespace
 
 void bindSvgf(py::module_& m) {
     const SvgfSettings defaults;
@@ -19,34 +33,35 @@ void bindSvgf(py::module_& m) {
                      "Stateful: feed frames in sequence order; reset() at a camera cut. History is dropped\n"
                      "when the frame size changes. Defaults are the paper's; see core/include/affinity/svgf.h.\n"
                      "Raises affinity.Error for settings out of range.")
-        .def(py::init([](int atrousIterations, int feedbackIteration, float sigmaDepth, float sigmaNormal,
-                         float sigmaLuminance, float alphaColor, float alphaMoments, int historyCap,
-                         int spatialVarianceFrames, float reprojectDepthTolerance, float reprojectNormalCosine,
-                         float albedoEpsilon) {
+        .def(py::init([](int atrousIterations, int feedbackIteration, double sigmaDepth, double sigmaNormal,
+                         double sigmaLuminance, double alphaColor, double alphaMoments, int historyCap,
+                         int spatialVarianceFrames, double reprojectDepthTolerance, double reprojectNormalCosine,
+                         double albedoEpsilon) {
                  SvgfSettings s;
                  s.atrousIterations = atrousIterations;
                  s.feedbackIteration = feedbackIteration;
-                 s.sigmaDepth = sigmaDepth;
-                 s.sigmaNormal = sigmaNormal;
-                 s.sigmaLuminance = sigmaLuminance;
-                 s.alphaColor = alphaColor;
-                 s.alphaMoments = alphaMoments;
+                 s.sigmaDepth = float(sigmaDepth);
+                 s.sigmaNormal = float(sigmaNormal);
+                 s.sigmaLuminance = float(sigmaLuminance);
+                 s.alphaColor = float(alphaColor);
+                 s.alphaMoments = float(alphaMoments);
                  s.historyCap = historyCap;
                  s.spatialVarianceFrames = spatialVarianceFrames;
-                 s.reprojectDepthTolerance = reprojectDepthTolerance;
-                 s.reprojectNormalCosine = reprojectNormalCosine;
-                 s.albedoEpsilon = albedoEpsilon;
+                 s.reprojectDepthTolerance = float(reprojectDepthTolerance);
+                 s.reprojectNormalCosine = float(reprojectNormalCosine);
+                 s.albedoEpsilon = float(albedoEpsilon);
                  return Svgf(s);
              }),
              py::kw_only(), py::arg("atrous_iterations") = defaults.atrousIterations,
-             py::arg("feedback_iteration") = defaults.feedbackIteration, py::arg("sigma_depth") = defaults.sigmaDepth,
-             py::arg("sigma_normal") = defaults.sigmaNormal, py::arg("sigma_luminance") = defaults.sigmaLuminance,
-             py::arg("alpha_color") = defaults.alphaColor, py::arg("alpha_moments") = defaults.alphaMoments,
+             py::arg("feedback_iteration") = defaults.feedbackIteration,
+             py::arg("sigma_depth") = shown(defaults.sigmaDepth), py::arg("sigma_normal") = shown(defaults.sigmaNormal),
+             py::arg("sigma_luminance") = shown(defaults.sigmaLuminance),
+             py::arg("alpha_color") = shown(defaults.alphaColor), py::arg("alpha_moments") = shown(defaults.alphaMoments),
              py::arg("history_cap") = defaults.historyCap,
              py::arg("spatial_variance_frames") = defaults.spatialVarianceFrames,
-             py::arg("reproject_depth_tolerance") = defaults.reprojectDepthTolerance,
-             py::arg("reproject_normal_cosine") = defaults.reprojectNormalCosine,
-             py::arg("albedo_epsilon") = defaults.albedoEpsilon)
+             py::arg("reproject_depth_tolerance") = shown(defaults.reprojectDepthTolerance),
+             py::arg("reproject_normal_cosine") = shown(defaults.reprojectNormalCosine),
+             py::arg("albedo_epsilon") = shown(defaults.albedoEpsilon))
         .def(
             "denoise",
             [](Svgf& self, const py::dict& frame) {
@@ -67,16 +82,16 @@ void bindSvgf(py::module_& m) {
             py::dict d;
             d["atrous_iterations"] = s.atrousIterations;
             d["feedback_iteration"] = s.feedbackIteration;
-            d["sigma_depth"] = s.sigmaDepth;
-            d["sigma_normal"] = s.sigmaNormal;
-            d["sigma_luminance"] = s.sigmaLuminance;
-            d["alpha_color"] = s.alphaColor;
-            d["alpha_moments"] = s.alphaMoments;
+            d["sigma_depth"] = shown(s.sigmaDepth);
+            d["sigma_normal"] = shown(s.sigmaNormal);
+            d["sigma_luminance"] = shown(s.sigmaLuminance);
+            d["alpha_color"] = shown(s.alphaColor);
+            d["alpha_moments"] = shown(s.alphaMoments);
             d["history_cap"] = s.historyCap;
             d["spatial_variance_frames"] = s.spatialVarianceFrames;
-            d["reproject_depth_tolerance"] = s.reprojectDepthTolerance;
-            d["reproject_normal_cosine"] = s.reprojectNormalCosine;
-            d["albedo_epsilon"] = s.albedoEpsilon;
+            d["reproject_depth_tolerance"] = shown(s.reprojectDepthTolerance);
+            d["reproject_normal_cosine"] = shown(s.reprojectNormalCosine);
+            d["albedo_epsilon"] = shown(s.albedoEpsilon);
             return d;
         });
 }
