@@ -274,19 +274,20 @@ def object_transforms(depsgraph: Any) -> ObjectTransforms:
     and any other object the hash of its name. Float keys of different objects can coincide
     (the id is rounded to 24 bits); such keys are kept but marked ambiguous.
     """
-    keys: list[np.float32] = []
+    random_ids: list[int] = []
     matrices: list[np.ndarray] = []
     for instance in depsgraph.object_instances:
         obj = instance.object
         if obj.type in _NO_SURFACE:
             continue
-        random_id = instance.random_id if instance.is_instance else cycles_name_hash(obj.name)
-        keys.append(object_key(random_id))
+        random_ids.append(instance.random_id & _UINT32 if instance.is_instance
+                          else cycles_name_hash(obj.name))
         matrices.append(np.array(instance.matrix_world, dtype=np.float64))
-    if not keys:
+    if not random_ids:
         return ObjectTransforms(np.empty(0, np.float32), np.empty((0, 4, 4)))
-    all_keys = np.array(keys, np.float32)
-    unique, first, counts = np.unique(all_keys, return_index=True, return_counts=True)
+    # As object_key, for all at once: uint32 -> float32 rounds to nearest, as C's cast does.
+    keys = np.array(random_ids, np.uint32).astype(np.float32) * np.float32(2.0 ** -32)
+    unique, first, counts = np.unique(keys, return_index=True, return_counts=True)
     unique_matrices = np.stack(matrices)[first]
     unique_matrices[counts > 1] = np.nan
     return ObjectTransforms(unique, unique_matrices)

@@ -44,10 +44,12 @@ def _mesh(primitive: str, name: str, material: bpy.types.Material, index: int,
     return obj
 
 
-def build_scene(moving_camera: bool) -> bpy.types.Scene:
+def build_scene(moving_camera: bool, folder: Any) -> bpy.types.Scene:
+    """The scene; its render output (and so the denoised files) goes into ``folder``."""
     bpy.ops.wm.read_factory_settings(use_empty=True)
     scene = bpy.context.scene
     render = scene.render
+    render.filepath = str(folder / "render" / "frame_")
     render.engine = "CYCLES"
     render.resolution_x, render.resolution_y, render.resolution_percentage = WIDTH, HEIGHT, 100
     render.threads_mode, render.threads = "FIXED", 2
@@ -128,8 +130,8 @@ def _object_index(captured: dict[str, np.ndarray]) -> np.ndarray:
     return np.rint(captured[name][..., 0]).astype(int)
 
 
-def _run(moving_camera: bool) -> dict[str, Any]:
-    scene = build_scene(moving_camera)
+def _run(moving_camera: bool, folder: Any) -> dict[str, Any]:
+    scene = build_scene(moving_camera, folder)
     job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
                                  pipeline.Settings(samples_per_frame=SPP))
     job.keep_frames = True
@@ -154,13 +156,13 @@ def _run(moving_camera: bool) -> dict[str, Any]:
 
 
 @pytest.fixture(scope="module")
-def static_camera() -> dict[str, Any]:
-    return _run(moving_camera=False)
+def static_camera(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    return _run(False, tmp_path_factory.mktemp("static_camera"))
 
 
 @pytest.fixture(scope="module")
-def moving_camera() -> dict[str, Any]:
-    return _run(moving_camera=True)
+def moving_camera(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
+    return _run(True, tmp_path_factory.mktemp("moving_camera"))
 
 
 def _analytic_motion(frames: dict[int, dict[str, Any]], frame: int) -> np.ndarray:
@@ -256,8 +258,8 @@ def _user_state(scene: Any) -> dict[str, Any]:
     }
 
 
-def test_user_materials_aovs_and_passes_are_restored_exactly() -> None:
-    scene = build_scene(moving_camera=False)
+def test_user_materials_aovs_and_passes_are_restored_exactly(tmp_path: Any) -> None:
+    scene = build_scene(False, tmp_path)
     layer = scene.view_layers[0]
     mine = layer.aovs.add()  # the user's own AOV, written by a node of their own
     mine.name, mine.type = "user_mask", "VALUE"
@@ -281,10 +283,10 @@ def test_user_materials_aovs_and_passes_are_restored_exactly() -> None:
     assert _user_state(scene) == before
 
 
-def test_motion_blur_keeps_object_motion() -> None:
+def test_motion_blur_keeps_object_motion(tmp_path: Any) -> None:
     """With motion blur on, Cycles' Vector pass is zero; the hit point in object space does not
     depend on the shutter time, so the mover still gets its motion."""
-    scene = build_scene(moving_camera=False)
+    scene = build_scene(False, tmp_path)
     scene.render.use_motion_blur = True
     layer = scene.view_layers[0]
 
@@ -341,12 +343,51 @@ def test_shared_keys_fall_back_to_camera_motion() -> None:
     np.testing.assert_array_equal(ours[1], expected[1])
 
 
-def test_cycles_name_hash_gives_the_object_info_random_value() -> None:
-    scene = build_scene(moving_camera=False)
+def test_object_keys_match_the_object_info_random_value(tmp_path: Any) -> None:
+    """The object table names every object and instance by the value Cycles' Object Info
+    "Random" has on it, and its matrix takes the object-space AOV to Cycles' Position pass."""
+    scene = build_scene(False, tmp_path)
+    prototype = bpy.data.collections.new("Prototype")  # a collection instance ...
+    holder = bpy.data.objects.new("Holder", None)
+    holder.instance_type, holder.instance_collection = "COLLECTION", prototype
+    holder.location, holder.rotation_euler = (0.4, -2.0, 1.2), (0.3, 0.2, 0.1)
+    scene.collection.objects.link(holder)
+    bpy.ops.mesh.primitive_cube_add(size=0.3)
+    cube = bpy.context.object
+    cube.data.materials.append(bpy.data.materials["Green"])
+    for collection in cube.users_collection:
+        collection.objects.unlink(cube)
+    prototype.objects.link(cube)
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(-1.6, -2.5, 1.9))  # ... and dupli-verts
+    grid = bpy.context.object
+    grid.instance_type = "VERTS"
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=0.12, segments=8, ring_count=4)
+    ball = bpy.context.object
+    ball.data.materials.append(bpy.data.materials["Floor"])
+    ball.parent = grid
     layer = scene.view_layers[0]
+
+    def one_sample(s: Any) -> None:
+        s.cycles.samples = 1
+        layer.use_pass_position = True
+
     with passes.shader_aovs(layer), materials.surface_aovs(bpy.data):
-        captured = capture(scene, lambda s: setattr(s.cycles, "samples", 1))
-    seen = set(np.unique(captured[passes.AOV_OBJECT][..., 0]).tolist()) - {0.0}
+        captured = capture(scene, one_sample)
+    table = motion.object_transforms(bpy.context.evaluated_depsgraph_get())
+    instances = {(i.parent.name, float(motion.object_key(i.random_id))) for i in
+                 bpy.context.evaluated_depsgraph_get().object_instances if i.is_instance}
+    key = captured[passes.AOV_OBJECT][..., 0]
+    hit = captured[passes.AOV_DISTANCE][..., 0] > 0
+    seen = set(np.unique(key[hit]).tolist())
     expected = {float(motion.object_key(motion.cycles_name_hash(name)))
                 for name in ("Floor", "Mover", "Spinner", "Child")}
-    assert seen == expected
+    assert expected <= seen and seen <= set(table.keys.tolist())
+    assert {"Holder", "Plane"} <= {parent for parent, value in instances if value in seen}
+    assert len(seen & {value for _, value in instances}) >= 3  # some balls are hidden
+    assert not table.ambiguous.any()
+    index = table.find(key[hit])
+    assert (index >= 0).all()
+    local = captured[passes.AOV_LOCAL][..., :3][hit].astype(np.float64)
+    world = np.einsum("nij,nj->ni", table.matrices[index][:, :3, :3], local)
+    world += table.matrices[index][:, :3, 3]
+    assert np.abs(world - captured["Position"][..., :3][hit]).max() < 1e-5
