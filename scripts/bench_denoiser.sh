@@ -12,6 +12,8 @@ spp=${2:-4}
 build=${AFFINITY_BUILD:-$root/build}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
+# BENCH_JSON=FILE keeps the per-model results (one JSON object per line) for scripts/model_ladder.py.
+json_out=${BENCH_JSON:-}
 # Idle OpenMP workers sleep instead of spinning, so that back-to-back runs do not slow each other.
 export OMP_WAIT_POLICY=passive
 
@@ -27,6 +29,7 @@ for entry in "${models[@]}"; do
   [ -n "$file" ] && args+=(--model "$file")
   echo "{\"label\": \"$label\", \"result\": $("$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"
 done
+[ -n "$json_out" ] && cp "$work/results.jsonl" "$json_out"
 PYTHONPATH=$build/python "$root/.venv/bin/python" - "$size" "$spp" "$work/results.jsonl" <<'PY'
 import json, resource, statistics, sys, time
 
