@@ -2,7 +2,10 @@
 in memory vs through a multilayer EXR, and what the features and the denoiser add.
 
     PYTHONPATH=build/python:blender_addon .venv-blender/bin/python tests/blender/bench_subrenders.py \
-        [--sizes 64x48,640x480] [--spp 4] [--repeats 3] [--threads 2]
+        [--sizes 64x48,640x480] [--spp 4] [--repeats 3] [--threads 2] [--triangles N]
+
+--triangles adds a finely tessellated sphere of about N triangles to the test scene (the
+issue's "about a million triangles" case: --sizes 960x540 --triangles 1000000).
 
 Prints one line per size; every number is the median of the repeats, in milliseconds per frame.
 """
@@ -44,6 +47,23 @@ def _full_render(scene: bpy.types.Scene, spp: int) -> float:
     return time.perf_counter() - start
 
 
+def _add_dense_mesh(triangles: int) -> int:
+    """A UV sphere of about `triangles` triangles (2 x segments x rings), with a rough
+    material, in front of the other objects. Returns its exact triangle count."""
+    rings = max(3, int((triangles / 4) ** 0.5))
+    segments = max(3, triangles // (2 * rings))
+    bpy.ops.mesh.primitive_uv_sphere_add(segments=segments, ring_count=rings, radius=0.8,
+                                         location=(0.0, 0.5, 0.8))
+    obj = bpy.context.object
+    material = bpy.data.materials.new("Dense")
+    if material.node_tree is None:
+        material.use_nodes = True
+    obj.data.materials.append(material)
+    mesh = obj.data
+    mesh.calc_loop_triangles()
+    return len(mesh.loop_triangles)
+
+
 def _in_memory_vs_exr(scene: bpy.types.Scene, folder: str) -> tuple[float, float]:
     """One 1-spp render read in memory, and the same render written as a multilayer EXR
     (uncompressed, 32-bit float, every pass)."""
@@ -83,6 +103,7 @@ def main() -> None:
     parser.add_argument("--spp", type=int, default=4)
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--triangles", type=int, default=0)
     args = parser.parse_args()
 
     affinity_denoiser.register()
@@ -100,6 +121,10 @@ def main() -> None:
             for _ in range(args.repeats):
                 scene = scenes.build_scene(width, height, frames=1, spp=args.spp,
                                            threads=args.threads)
+                if args.triangles:
+                    count = _add_dense_mesh(args.triangles)
+                    if len(full) == 0:
+                        print(f"{size}: dense sphere of {count} triangles added")
                 scene.render.filepath = os.path.join(folder, "render_")
                 full.append(_full_render(scene, args.spp))
                 job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1],
