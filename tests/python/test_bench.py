@@ -43,9 +43,9 @@ def test_every_method_ran_and_every_metric_is_finite(bench: tuple[pathlib.Path, 
     out, _, _ = bench
     rows = read_rows(out / "results.csv")
     methods = {row["method"] for row in rows}
-    expected = {"noisy", "oidn", "ours-small", "ours-tiny"}
-    expected |= {"svgf"} if hasattr(affinity, "Svgf") else set()
-    assert expected <= methods
+    expected = {"noisy", "oidn", "svgf", "ours-small", "ours-tiny", "small-single_frame",
+                "small-no_temporal_kernel", "small-one_kernel"}
+    assert methods == expected
     # 2 sequences x 2 spp x every method, plus noisy and oidn at the equal-time chart's 8 spp.
     assert len(rows) == 2 * 2 * len(methods) + 2 * 2
     for row in rows:

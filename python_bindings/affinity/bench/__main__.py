@@ -145,7 +145,7 @@ def main(argv: list[str] | None = None) -> None:
         notices.append(text)
 
     models = args.model or default_models(notice)
-    methods = select_methods(make_methods(models, notice), args.methods)
+    methods = select_methods(make_methods(models), args.methods)
     binary = find_affinity_binary(args.affinity_bin)
     print(f"bench: config {config.name}: {len(config.sequences)} sequences, {config.frames} frames "
           f"{config.width}x{config.height}, spp {config.spp}, reference {config.reference_spp} spp; methods "

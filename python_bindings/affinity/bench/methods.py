@@ -9,7 +9,6 @@ one part switched off).
 
 from __future__ import annotations
 
-import inspect
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -22,7 +21,7 @@ import affinity
 Runner = Callable[[dict[str, Any]], np.ndarray]
 
 #: The ablations of affinity.Denoiser (ALGORITHM.md section 9).
-ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel")
+ABLATIONS = affinity.Denoiser.ABLATIONS
 #: The built-in model, where a model path is expected.
 BUILT_IN = "builtin"
 
@@ -74,8 +73,7 @@ def _svgf() -> Runner:
 
 def _ours(model: affinity.Model, ablation: str | None = None) -> Callable[[], Runner]:
     def start() -> Runner:
-        denoiser = affinity.Denoiser(model) if ablation is None else affinity.Denoiser(model, ablation=ablation)
-        return denoiser.denoise
+        return affinity.Denoiser(model, ablation=ablation).denoise
 
     return start
 
@@ -84,27 +82,20 @@ def load_model(path: str) -> affinity.Model:
     return affinity.Model.built_in() if path == BUILT_IN else affinity.Model.from_file(os.fspath(path))
 
 
-def make_methods(models: list[tuple[str, str]], notice: Callable[[str], None]) -> list[Method]:
+def make_methods(models: list[tuple[str, str]]) -> list[Method]:
     """noisy, oidn, svgf, ours-<label> for every (label, path) in `models`, and the ablations
-    of the first model. Methods the installed affinity does not provide yet are skipped with a
-    notice."""
+    of the first model."""
     methods = [
         Method("noisy", "input", "per-pixel mean of the samples", _noisy),
         Method("oidn", "baseline", "OpenImageDenoise (pyoidn), HDR colour + albedo + normal, single frame", _oidn),
     ]
-    if hasattr(affinity, "Svgf"):
-        methods.append(Method("svgf", "baseline", "SVGF (Schied et al. 2017), affinity.Svgf", _svgf))
-    else:
-        notice("svgf skipped: this affinity build has no affinity.Svgf")
+    methods.append(Method("svgf", "baseline", "SVGF (Schied et al. 2017), affinity.Svgf", _svgf))
     loaded = [(label, path, load_model(path)) for label, path in models]
     for label, path, model in loaded:
         methods.append(Method(f"ours-{label}", "ours", f"affinity.Denoiser, model {label} ({path})", _ours(model)))
     if loaded:
         label, _, model = loaded[0]
-        if "ablation" in inspect.signature(affinity.Denoiser).parameters:
-            for ablation in ABLATIONS:
-                methods.append(Method(f"{label}-{ablation}", "ablation",
-                                      f"model {label} with ablation={ablation!r}", _ours(model, ablation)))
-        else:
-            notice("ablations skipped: this affinity build's Denoiser has no ablation keyword")
+        for ablation in ABLATIONS:
+            methods.append(Method(f"{label}-{ablation}", "ablation",
+                                  f"model {label} with ablation={ablation!r}", _ours(model, ablation)))
     return methods

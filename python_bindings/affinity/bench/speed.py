@@ -50,7 +50,7 @@ def synthetic_frame(width: int, height: int, spp: int) -> dict[str, Any]:
 def worker(label: str, width: int, height: int, spp: int, repeats: int, models: list[tuple[str, str]]) -> dict[str, Any]:
     from .methods import make_methods
 
-    methods = {m.label: m for m in make_methods(models, lambda text: print(text, file=sys.stderr))}
+    methods = {m.label: m for m in make_methods(models)}
     if label not in methods:
         raise SystemExit(f"speed worker: no method {label!r} (have {', '.join(methods)})")
     frame = synthetic_frame(width, height, spp)
