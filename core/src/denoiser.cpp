@@ -17,12 +17,12 @@ namespace {
 float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
 
 // 1 / mean depth of the samples that hit something (docs/MODEL.md section 1).
-float depthScale(const SampleFrame& frame) {
+float depthScale(const SampleFrameView& frame) {
     double sum = 0.0;
     long long count = 0;
-    const std::vector<float>& samples = frame.samples();
-    for (std::size_t i = channel::kDepth; i < samples.size(); i += kFeatureCount) {
-        float depth = samples[i];
+    const std::size_t values = frame.pixelCount() * std::size_t(frame.spp) * kFeatureCount;
+    for (std::size_t i = channel::kDepth; i < values; i += kFeatureCount) {
+        float depth = frame.samples[i];
         if (std::isfinite(depth) && depth > 0.0f) {
             sum += depth;
             ++count;
@@ -32,13 +32,13 @@ float depthScale(const SampleFrame& frame) {
 }
 
 // Per-pixel mean radiance with non-finite and negative values read as 0.
-void noisyRadiance(const SampleFrame& frame, FeatureMap& out) {
-    out.resize(frame.height(), frame.width(), 3);
-    const int spp = frame.spp();
+void noisyRadiance(const SampleFrameView& frame, FeatureMap& out) {
+    out.resize(frame.height, frame.width, 3);
+    const int spp = frame.spp;
     const float scale = 1.0f / float(spp);
 #pragma omp parallel for schedule(static)
-    for (int y = 0; y < frame.height(); ++y) {
-        for (int x = 0; x < frame.width(); ++x) {
+    for (int y = 0; y < frame.height; ++y) {
+        for (int x = 0; x < frame.width; ++x) {
             float* o = out.pixel(y, x);
             o[0] = o[1] = o[2] = 0.0f;
             for (int s = 0; s < spp; ++s) {
@@ -54,7 +54,7 @@ void noisyRadiance(const SampleFrame& frame, FeatureMap& out) {
 }
 
 // warped = current wherever the history is not valid.
-void keepWhereValid(FeatureMap& warped, const FeatureMap& current, const std::vector<float>& valid) {
+void keepWhereValid(FeatureMap& warped, const FeatureMap& current, const float* valid) {
     const int channels = current.channels();
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < current.height(); ++y)
@@ -214,16 +214,24 @@ FeatureMap Denoiser::State::runUnet(const Network& net, const FeatureMap& embedd
 }
 
 std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* report) {
+    if (frame.width() < 1 || frame.height() < 1 || frame.spp() < 1) throw Error("denoise: the frame is empty");
+    SampleFrameView view;
+    try {
+        view = frame.view();
+    } catch (const Error& e) {
+        throw Error(std::string("denoise: ") + e.what());
+    }
+    return denoise(view, report);
+}
+
+std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport* report) {
     State& s = *state_;
     const Network& net = s.model.network();
     DenoiseReport local;
     StageClock clock(local);
-    const int width = frame.width(), height = frame.height();
-    if (width < 1 || height < 1 || frame.spp() < 1) throw Error("denoise: the frame is empty");
-    if (frame.samples().size() != frame.pixelCount() * std::size_t(frame.spp()) * kFeatureCount ||
-        frame.motion().size() != frame.pixelCount() * 2 || frame.valid().size() != frame.pixelCount())
-        throw Error("denoise: the frame's buffers do not match its size " + std::to_string(width) + "x" +
-                    std::to_string(height) + " at " + std::to_string(frame.spp()) + " spp");
+    const int width = frame.width, height = frame.height;
+    if (width < 1 || height < 1 || frame.spp < 1) throw Error("denoise: the frame is empty");
+    if (!frame.samples || !frame.motion || !frame.valid) throw Error("denoise: the frame lacks a buffer");
 
     // Drop history where it cannot apply.
     const float scale = depthScale(frame);
@@ -250,17 +258,17 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
     // 1-2. Per-sample embedding averaged per pixel; noisy radiance.
     const int E = net.embedding->outChannels();
     FeatureMap embedding = s.pool.take(height, width, E);
-    local.invalidRadiance = net.embedding->apply(frame.samples().data(), height, width, frame.spp(), scale, embedding);
+    local.invalidRadiance = net.embedding->apply(frame.samples, height, width, frame.spp, scale, embedding);
     noisyRadiance(frame, s.radiance);
     clock.mark("embedding");
 
     // 3. Histories: warped previous state where valid, the current frame elsewhere.
-    const std::vector<float>& valid = frame.valid();  // read only when there is history
+    const float* valid = frame.valid;  // read only when there is history
     FeatureMap historyEmbedding = s.pool.take(height, width, E);
     if (history) {
-        warpBilinear(s.embeddingHistory, frame.motion().data(), historyEmbedding);
+        warpBilinear(s.embeddingHistory, frame.motion, historyEmbedding);
         keepWhereValid(historyEmbedding, embedding, valid);
-        warpBilinear(s.radianceHistory, frame.motion().data(), s.historyRadiance);
+        warpBilinear(s.radianceHistory, frame.motion, s.historyRadiance);
         keepWhereValid(s.historyRadiance, s.radiance, valid);
     } else {
         historyEmbedding = embedding;
@@ -320,11 +328,11 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
     clock.mark("spatial kernels");
     // 7. The last kernel, with temporal taps on the warped previous output.
     if (history && s.options.temporalKernel) {
-        warpBilinear(s.output, frame.motion().data(), s.warpedOutput);
+        warpBilinear(s.output, frame.motion, s.warpedOutput);
         FeatureMap warpedFeatures = s.pool.take(height, width, F);
-        warpBilinear(s.lastFeatures, frame.motion().data(), warpedFeatures);
+        warpBilinear(s.lastFeatures, frame.motion, warpedFeatures);
         s.validMap.resize(height, width, 1);
-        std::copy(valid.begin(), valid.end(), s.validMap.data());
+        std::copy(valid, valid + frame.pixelCount(), s.validMap.data());
         affinityFilterTemporal(*in, params(K - 1), net.tapSize, 1 << (K - 1), s.temporalBandwidth, s.warpedOutput,
                                warpedFeatures, s.validMap, *out);
         s.pool.give(warpedFeatures);

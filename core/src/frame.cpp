@@ -20,6 +20,14 @@ SampleFrame::SampleFrame(int width, int height, int spp, bool withReference)
     if (withReference) reference_.assign(pixelCount() * 3, 0.0f);
 }
 
+SampleFrameView SampleFrame::view() const {
+    if (samples_.size() != pixelCount() * std::size_t(spp_) * kFeatureCount || motion_.size() != pixelCount() * 2 ||
+        valid_.size() != pixelCount())
+        throw Error("the frame's buffers do not match its size " + std::to_string(width_) + "x" +
+                    std::to_string(height_) + " at " + std::to_string(spp_) + " spp");
+    return SampleFrameView{width_, height_, spp_, samples_.data(), motion_.data(), valid_.data(), info};
+}
+
 std::vector<float> SampleFrame::meanRadiance() const {
     std::vector<float> mean(pixelCount() * 3, 0.0f);
     const float scale = 1.0f / float(spp_);

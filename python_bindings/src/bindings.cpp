@@ -217,7 +217,7 @@ FrameInfo infoFromDict(const py::handle& value) {
 
 }  // namespace
 
-SampleFrame frameFromDict(const py::dict& dict) {
+FrameArrays frameArraysFromDict(const py::dict& dict) {
     const std::string what = "frame";
     checkKeys(dict, what, {"samples", "motion", "valid", "reference", "info"});
     const auto samples = floatArray(requireKey(dict, what, "samples"), "frame['samples']",
@@ -240,14 +240,21 @@ SampleFrame frameFromDict(const py::dict& dict) {
     if (hasReference) {
         reference = floatArray(referenceValue, "frame['reference']", {h, w, 3}, "(" + hw + ", 3)");
     }
-    FrameInfo info = infoFromDict(requireKey(dict, what, "info"));
+    FrameArrays arrays{samples, motion, valid, reference, {}};
+    arrays.view = SampleFrameView{int(w), int(h), int(spp), arrays.samples.data(), arrays.motion.data(),
+                                  arrays.valid.data(), infoFromDict(requireKey(dict, what, "info"))};
+    return arrays;
+}
 
-    SampleFrame frame(int(w), int(h), int(spp), hasReference);
-    copyInto(frame.samples(), samples);
-    copyInto(frame.motion(), motion);
-    copyInto(frame.valid(), valid);
-    if (hasReference) copyInto(frame.reference(), reference);
-    frame.info = std::move(info);
+SampleFrame frameFromDict(const py::dict& dict) {
+    const FrameArrays arrays = frameArraysFromDict(dict);
+    const SampleFrameView& view = arrays.view;
+    SampleFrame frame(view.width, view.height, view.spp, arrays.reference.size() > 0);
+    copyInto(frame.samples(), arrays.samples);
+    copyInto(frame.motion(), arrays.motion);
+    copyInto(frame.valid(), arrays.valid);
+    if (frame.hasReference()) copyInto(frame.reference(), arrays.reference);
+    frame.info = view.info;
     return frame;
 }
 
@@ -331,12 +338,13 @@ PYBIND11_MODULE(_core, m) {
         .def(
             "denoise",
             [](Denoiser& self, const py::dict& frame) {
-                const SampleFrame native = frameFromDict(frame);
+                // The denoiser reads the dict's arrays in place (kept alive by `arrays`).
+                const FrameArrays arrays = frameArraysFromDict(frame);
                 DenoiseReport report;
                 std::vector<float> rgb;
                 {
                     py::gil_scoped_release release;
-                    rgb = self.denoise(native, &report);
+                    rgb = self.denoise(arrays.view, &report);
                 }
                 py::dict info;
                 info["invalid_radiance"] = report.invalidRadiance;
@@ -345,7 +353,7 @@ PYBIND11_MODULE(_core, m) {
                 py::dict stages;
                 for (const auto& [stage, ms] : report.stageMilliseconds) stages[py::str(stage)] = ms;
                 info["stage_ms"] = stages;
-                return py::make_tuple(arrayOwning(std::move(rgb), {native.height(), native.width(), 3}), info);
+                return py::make_tuple(arrayOwning(std::move(rgb), {arrays.view.height, arrays.view.width, 3}), info);
             },
             py::arg("frame"))
         .def("reset", &Denoiser::reset)

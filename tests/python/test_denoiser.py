@@ -103,3 +103,14 @@ def test_single_frame_ablation_ignores_history_and_stages_are_timed(sequence: li
     stages = ablated.last_report["stage_ms"]
     assert list(stages)[0] == "embedding" and list(stages)[-1] == "temporal kernel"
     assert all(ms >= 0.0 for ms in stages.values())
+
+
+def test_any_array_layout_gives_the_same_output(sequence: list[dict]) -> None:
+    """The denoiser reads C-contiguous float32 arrays in place and converts any other layout."""
+    frame = sequence[0]
+    strided = dict(frame)
+    strided["samples"] = np.asfortranarray(frame["samples"])
+    strided["motion"] = frame["motion"][::-1][::-1]  # a view with the same values
+    strided["valid"] = np.ascontiguousarray(frame["valid"], dtype=np.float64).astype(np.float32)
+    np.testing.assert_array_equal(affinity.Denoiser().denoise(strided), affinity.Denoiser().denoise(frame))
+    assert frame["samples"].flags["C_CONTIGUOUS"]  # the input was not touched

@@ -39,6 +39,8 @@ public:
     // Denoises the next frame of the sequence. Returns height x width x 3 linear radiance.
     // History is dropped automatically when the frame size changes or the camera jumps.
     std::vector<float> denoise(const SampleFrame& frame, DenoiseReport* report = nullptr);
+    // The same on buffers the caller owns (nothing is copied).
+    std::vector<float> denoise(const SampleFrameView& frame, DenoiseReport* report = nullptr);
     void reset();
 
     const Model& model() const;

@@ -27,6 +27,22 @@ struct FrameInfo {
     Matrix4 cameraToClip{};
 };
 
+// A frame's per-pixel inputs without owning them: what the denoiser reads. SampleFrame::view()
+// makes one; the Python binding points one at numpy arrays, so a frame is never copied there.
+struct SampleFrameView {
+    int width = 0, height = 0, spp = 0;
+    const float* samples = nullptr;  // [y][x][s][feature], kFeatureCount floats per sample
+    const float* motion = nullptr;   // [y][x][2]
+    const float* valid = nullptr;    // [y][x]
+    FrameInfo info;
+
+    std::size_t pixelCount() const { return std::size_t(width) * std::size_t(height); }
+    const float* sample(int x, int y, int s) const {
+        return samples + ((std::size_t(y) * std::size_t(width) + std::size_t(x)) * std::size_t(spp) + std::size_t(s)) *
+                             kFeatureCount;
+    }
+};
+
 class SampleFrame {
 public:
     SampleFrame() = default;
@@ -67,6 +83,9 @@ public:
     const std::vector<float>& reference() const { return reference_; }
 
     FrameInfo info;
+
+    // Throws affinity::Error when a buffer does not match the frame's size (they are public).
+    SampleFrameView view() const;
 
     // Per-pixel mean of the samples' radiance (diffuse + specular): the noisy input, [y][x][3].
     std::vector<float> meanRadiance() const;
