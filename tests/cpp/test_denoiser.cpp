@@ -247,3 +247,20 @@ TEST(Denoiser, HistoryIsDroppedWhenTheSizeChangesOrTheCameraJumps) {
     EXPECT_TRUE(report.usedHistory);
     EXPECT_TRUE(report.resetReason.empty());
 }
+
+TEST(Denoiser, BuffersThatDoNotMatchTheFrameAreAnErrorNamingTheSize) {
+    auto frames = test::randomSequence(1, 6, 5, 2, 12);
+    frames[0].motion().pop_back();
+    Denoiser denoiser(randomModel());
+    try {
+        denoiser.denoise(frames[0]);
+        FAIL() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("denoise: the frame's buffers do not match its size 6x5 at 2 spp"),
+                  std::string::npos)
+            << e.what();
+    }
+    SampleFrameView missing;
+    missing.width = 6, missing.height = 5, missing.spp = 2;
+    EXPECT_THROW(denoiser.denoise(missing), Error);
+}
