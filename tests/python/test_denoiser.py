@@ -5,12 +5,12 @@ from __future__ import annotations
 import os
 import pathlib
 import subprocess
-import threading
 
 import numpy as np
 import pytest
 
 import affinity
+from gil_check import python_ticks_during
 
 BUILD = pathlib.Path(os.environ.get("AFFINITY_BUILD_DIR", pathlib.Path(__file__).parents[2] / "build"))
 CLI = BUILD / "core" / "affinity"
@@ -68,21 +68,7 @@ def test_the_gil_is_released_while_denoising(sequence: list[dict]) -> None:
            "motion": np.zeros((240, 320, 2), np.float32), "valid": np.zeros((240, 320), np.float32),
            "reference": None}
     denoiser = affinity.Denoiser()
-    ticks = 0
-    done = threading.Event()
-
-    def count() -> None:
-        nonlocal ticks
-        while not done.is_set():
-            ticks += 1
-
-    counter = threading.Thread(target=count)
-    counter.start()
-    before = ticks
-    denoiser.denoise(big)
-    during = ticks - before
-    done.set()
-    counter.join()
+    during = python_ticks_during(lambda: denoiser.denoise(big))
     assert during > 1000  # Python code ran while the native denoiser worked
 
 

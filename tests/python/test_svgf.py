@@ -5,12 +5,12 @@ from __future__ import annotations
 import os
 import pathlib
 import subprocess
-import threading
 
 import numpy as np
 import pytest
 
 import affinity
+from gil_check import python_ticks_during
 
 BUILD = pathlib.Path(os.environ.get("AFFINITY_BUILD_DIR", pathlib.Path(__file__).parents[2] / "build"))
 CLI = BUILD / "core" / "affinity"
@@ -105,20 +105,5 @@ def test_the_gil_is_released_while_denoising(sequence: list[dict]) -> None:
            "motion": np.zeros((288, 384, 2), np.float32), "valid": np.zeros((288, 384), np.float32),
            "reference": None}
     svgf = affinity.Svgf()
-    ticks = 0
-    done = threading.Event()
-
-    def count() -> None:
-        nonlocal ticks
-        while not done.is_set():
-            ticks += 1
-
-    counter = threading.Thread(target=count)
-    counter.start()
-    before = ticks
-    for _ in range(3):
-        svgf.denoise(big)
-    during = ticks - before
-    done.set()
-    counter.join()
+    during = python_ticks_during(lambda: [svgf.denoise(big) for _ in range(3)])
     assert during > 1000  # Python code ran while the native filter worked
