@@ -16,7 +16,7 @@ void printUsage() {
                  "  render   render a per-sample frame sequence with its references\n"
                  "           --scene NAME_OR_FILE --frames N --spp S --size WxH --reference-spp R\n"
                  "           --seed K --out DIR [--first-frame F] [--compression none|zip|piz]\n"
-                 "           [--previews] [--force]\n"
+                 "           [--feature-convention renderer|cycles] [--previews] [--force]\n"
                  "  denoise  denoise a frame sequence: --in DIR --out DIR [--model FILE.affw] [--force]\n");
 }
 

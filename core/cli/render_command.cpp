@@ -45,13 +45,14 @@ ExrCompression parseCompression(const std::string& name) {
 int renderCommand(const std::vector<std::string>& args) {
     const Arguments a(args,
                       {"--scene", "--frames", "--spp", "--size", "--reference-spp", "--seed", "--out",
-                       "--first-frame", "--compression"},
+                       "--first-frame", "--compression", "--feature-convention"},
                       {"--force", "--previews"});
     render::RenderSettings settings;
     a.size("--size", settings.width, settings.height);
     settings.spp = a.integer("--spp", 4, 1, SampleFrame::kMaxSpp);
     settings.referenceSpp = a.integer("--reference-spp", 1024, 0, 1 << 20);
     settings.seed = a.unsignedInteger("--seed", 0);
+    settings.featureConvention = render::parseFeatureConvention(a.text("--feature-convention", "renderer"));
     const int frames = a.integer("--frames", 8, 1, 100000);
     const int firstFrame = a.integer("--first-frame", 0, 0, 1000000);
     const ExrCompression compression = parseCompression(a.text("--compression", "piz"));
@@ -105,6 +106,7 @@ int renderCommand(const std::vector<std::string>& args) {
                                     {"spp", settings.spp},
                                     {"reference_spp", settings.referenceSpp},
                                     {"seed", settings.seed},
+                                    {"feature_convention", render::featureConventionName(settings.featureConvention)},
                                     {"seconds", totalSeconds},
                                     {"rays_per_second", double(renderer.raysCast()) / totalSeconds},
                                     {"per_frame", perFrame}};

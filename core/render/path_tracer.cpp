@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include "affinity/error.h"
 #include "affinity/features.h"
 
 namespace affinity::render {
@@ -52,7 +53,80 @@ struct RadianceSplit {
     glm::vec3 throughput() const { return throughputDiffuse + throughputSpecular; }
 };
 
+// The features as the Blender extension maps Cycles' passes (docs/BLENDER.md, "Feature
+// mapping"), recorded along the same path. Cycles writes normal, albedo and depth at the first
+// vertex whose closures are not specular by its own threshold (GGX alpha <= 0.075) or that has
+// no BSDF at all (a pure emitter: normal 0), multiplying the albedo by the specular chain's
+// tint; roughness, metallic and transmissive are shader AOVs of the first hit; emissive is a
+// miss or an emitting first hit; anything else that reached no BSDF counts as a miss.
+struct CyclesFeatures {
+    bool hitSomething = false, firstEmits = false, firstMetallic = false, firstTransmissive = false;
+    float firstRoughness = 0.0f;
+    bool written = false;      // Cycles wrote its denoising features at some vertex
+    bool reachedBsdf = false;  // ... at a vertex with a BSDF (else a pure emitter: normal 0)
+    bool pastFirstHit = false;
+    glm::vec3 normal{0.0f}, albedo{0.0f}, chainTint{1.0f};
+    float depth = 0.0f;
+
+    static bool isCyclesSpecular(const Material& material) {
+        const bool microfacet = material.type == MaterialType::Conductor || material.type == MaterialType::Dielectric;
+        return microfacet && material.roughness * material.roughness <= kCyclesSpecularAlpha;
+    }
+
+    void atVertex(int bounce, const Material& material, const Bsdf& bsdf, bool emits, const glm::vec3& facing,
+                  float pathLength) {
+        if (bounce == 0) {
+            hitSomething = true;
+            firstEmits = emits;
+            firstRoughness = bsdf.featureRoughness();
+            firstMetallic = bsdf.isMetallic();
+            firstTransmissive = bsdf.isTransmissive();
+        }
+        if (written) return;
+        const glm::vec3 reflectance = bsdf.albedo();
+        // Cycles drops closures of zero weight: a black emitter is a pure Emission shader.
+        const bool pureEmission = material.type == MaterialType::Emitter &&
+                                  std::max({reflectance.x, reflectance.y, reflectance.z}) <= 0.0f;
+        if (!pureEmission && isCyclesSpecular(material)) {
+            chainTint *= reflectance;
+            return;
+        }
+        written = true;
+        reachedBsdf = !pureEmission;
+        pastFirstHit = bounce > 0;
+        depth = pathLength;
+        if (reachedBsdf) {
+            normal = facing;
+            albedo = glm::clamp(chainTint * reflectance, 0.0f, 1.0f);
+        }
+    }
+
+    void write(float* features) const {
+        const bool miss = !reachedBsdf && !firstEmits;
+        for (int c = 0; c < 3; ++c) {
+            features[channel::kNormal + c] = normal[c];
+            features[channel::kAlbedo + c] = albedo[c];
+        }
+        features[channel::kDepth] = miss ? 0.0f : depth;
+        features[channel::kRoughness] = miss ? 0.0f : firstRoughness;
+        features[channel::kEmissive] = (miss || firstEmits) ? 1.0f : 0.0f;
+        features[channel::kMetallic] = (!miss && firstMetallic) ? 1.0f : 0.0f;
+        features[channel::kTransmissive] = firstTransmissive ? 1.0f : 0.0f;
+        features[channel::kSpecularBounce] = (hitSomething && (pastFirstHit || miss)) ? 1.0f : 0.0f;
+    }
+};
+
 }  // namespace
+
+FeatureConvention parseFeatureConvention(const std::string& name) {
+    if (name == "renderer") return FeatureConvention::Renderer;
+    if (name == "cycles") return FeatureConvention::Cycles;
+    throw Error("feature convention must be renderer or cycles, got '" + name + "'");
+}
+
+const char* featureConventionName(FeatureConvention convention) {
+    return convention == FeatureConvention::Cycles ? "cycles" : "renderer";
+}
 
 int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDirection, Pcg32& rng,
                        float* features) const {
@@ -65,6 +139,8 @@ int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDire
     glm::vec3 previousPosition = cameraOrigin;
     float pathLength = 0.0f;
     bool transmittedBeforeV = false;
+    const bool cycles = convention_ == FeatureConvention::Cycles;
+    CyclesFeatures cyclesFeatures;
 
     int rays = 0;
     glm::vec3 origin = cameraOrigin, direction = cameraDirection;
@@ -85,7 +161,8 @@ int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDire
         const glm::vec3 wo = -direction;
 
         // Emission (one-sided: emitters shine towards their outward normal).
-        if (material.type == MaterialType::Emitter && glm::dot(hit->geometricNormal, wo) > 0.0f) {
+        const bool emits = material.type == MaterialType::Emitter && glm::dot(hit->geometricNormal, wo) > 0.0f;
+        if (emits) {
             float weight = previousWasDelta
                                ? 1.0f
                                : powerHeuristic(previousBsdfPdf, lights_.pdfEmitter(previousPosition, *hit));
@@ -107,9 +184,17 @@ int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDire
         const Bsdf bsdf(material, scene.textures[material.texture].evaluate(surface.uv, surface.objectPosition));
 
         const bool isV = !foundFirstNonSpecular && bsdf.hasNonDeltaLobe();
+        const glm::vec3 facing = woLocal.z >= 0.0f ? surface.shadingNormal : -surface.shadingNormal;
+        if (cycles) {
+            const glm::vec3 emission = material.emission;
+            const bool emitsLight = emits && std::max({emission.x, emission.y, emission.z}) > 0.0f;
+            cyclesFeatures.atVertex(bounce, material, bsdf, emitsLight, facing, pathLength);
+        }
+        // Where the radiance splits into diffuse and specular: at v, or (like Cycles' light
+        // passes) at the first hit's closures.
+        const bool splitsRadiance = cycles ? bounce == 0 : isV;
         if (isV) {
             foundFirstNonSpecular = true;
-            glm::vec3 facing = woLocal.z >= 0.0f ? surface.shadingNormal : -surface.shadingNormal;
             glm::vec3 albedo = glm::clamp(bsdf.albedo(), 0.0f, 1.0f);
             for (int c = 0; c < 3; ++c) {
                 features[channel::kNormal + c] = facing[c];
@@ -140,7 +225,7 @@ int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDire
                 if (reachesLight) {
                     float weight = powerHeuristic(light.pdf, f.pdf);
                     glm::vec3 scale = light.radiance * (std::abs(wiLocal.z) * weight / light.pdf);
-                    if (isV) {
+                    if (splitsRadiance) {
                         // At v the BSDF itself decides diffuse versus specular.
                         RadianceSplit atV;
                         atV.throughputDiffuse = radiance.throughputSpecular * f.diffuse;
@@ -161,7 +246,7 @@ int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDire
         std::optional<BsdfSample> next = bsdf.sample(woLocal, uLobe, u);
         if (!next) break;
         const glm::vec3 wi = glm::normalize(frame.toWorld(next->wi));
-        if (isV) {
+        if (splitsRadiance) {
             radiance.throughputDiffuse = radiance.throughputSpecular * next->weightDiffuse;
             radiance.throughputSpecular = radiance.throughputSpecular * next->weightSpecular;
         } else {
@@ -192,6 +277,7 @@ int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDire
         features[channel::kDiffuse + c] = radiance.diffuse[c];
         features[channel::kSpecular + c] = radiance.specular[c];
     }
+    if (cycles) cyclesFeatures.write(features);
     return rays;
 }
 

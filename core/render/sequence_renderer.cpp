@@ -42,7 +42,10 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
     const int width = settings_.width, height = settings_.height;
     auto current = std::make_unique<EmbreeScene>(scene_, float(frameIndex));
     const LightSampler lights(*current);
-    const PathTracer tracer(*current, lights, settings_.maxBounces);
+    const PathTracer tracer(*current, lights, settings_.maxBounces, settings_.featureConvention);
+    // The reference is radiance only; the renderer's own convention keeps its sums bit for bit
+    // independent of the feature convention (the split's rounding differs between them).
+    const PathTracer referenceTracer(*current, lights, settings_.maxBounces);
     const CameraView camera(scene_.camera, float(frameIndex), width, height);
 
     SampleFrame frame(width, height, settings_.spp, settings_.referenceSpp > 0);
@@ -77,7 +80,7 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
                     for (int s = 0; s < settings_.referenceSpp; ++s) {
                         Pcg32 rng = sampleRng(settings_.seed, frameIndex, pixel, kReferenceStream + std::uint64_t(s));
                         glm::vec2 jitter(rng.next(), rng.next());
-                        rays += std::uint64_t(tracer.trace(
+                        rays += std::uint64_t(referenceTracer.trace(
                             camera.position(), camera.direction(float(x) + jitter.x, float(y) + jitter.y), rng,
                             scratch));
                         for (int c = 0; c < 3; ++c) sum[c] += double(scratch[channel::kDiffuse + c] + scratch[channel::kSpecular + c]);

@@ -7,6 +7,7 @@
 
 #include "affinity/frame.h"
 #include "render/embree_scene.h"
+#include "render/path_tracer.h"
 #include "render/scene.h"
 
 namespace affinity::render {
@@ -18,6 +19,8 @@ struct RenderSettings {
     int referenceSpp = 1024;  // 0: no reference
     std::uint64_t seed = 0;
     int maxBounces = 16;
+    // Which vertices the features describe; the reference (radiance only) is the same either way.
+    FeatureConvention featureConvention = FeatureConvention::Renderer;
 };
 
 // Called with the fraction of the frame done, from one thread at a time.

@@ -79,3 +79,22 @@ def test_existing_frames_are_not_overwritten_without_force(tmp_path: pathlib.Pat
     assert (out / "frame_0000.exr").read_bytes() == before
     assert render(out, "--spp", "1", "--force").returncode == 0
     assert affinity.read_frame(out / "frame_0000.exr")["samples"].shape[2] == 1
+
+
+def test_cycles_feature_convention_keeps_the_paths_and_changes_the_features(tmp_path: pathlib.Path) -> None:
+    """--feature-convention cycles (docs/BLENDER.md): same radiance and reference, other features;
+    the default is the renderer's own convention."""
+    assert render(tmp_path / "default", scene="glossy").returncode == 0
+    assert render(tmp_path / "ours", "--feature-convention", "renderer", scene="glossy").returncode == 0
+    assert render(tmp_path / "cycles", "--feature-convention", "cycles", scene="glossy").returncode == 0
+    default, ours, cycles = (affinity.read_frame(tmp_path / name / "frame_0001.exr")
+                             for name in ("default", "ours", "cycles"))
+    np.testing.assert_array_equal(default["samples"], ours["samples"])
+    np.testing.assert_array_equal(ours["reference"], cycles["reference"])
+    total = ours["samples"][..., 0:3] + ours["samples"][..., 3:6]
+    np.testing.assert_allclose(cycles["samples"][..., 0:3] + cycles["samples"][..., 3:6], total, rtol=1e-5, atol=1e-6)
+    assert not np.array_equal(ours["samples"][..., 6:], cycles["samples"][..., 6:])
+    summary = json.loads((tmp_path / "cycles" / "render_summary.json").read_text())
+    assert summary["feature_convention"] == "cycles"
+    result = render(tmp_path / "x", "--feature-convention", "blender")
+    assert result.returncode == 1 and "renderer or cycles" in result.stderr
