@@ -33,14 +33,10 @@ struct BlockArgs {
     bool leaky;
 };
 
-// acc[m] += sum over j < count of in[m * stride + j] * w[j] for M pixels: the innermost loop,
-// M x N FMAs per j, each operand in a register or one load away.
+// acc[m] += sum over j < count of pixel[m][j] * w[j] for M pixels: the innermost loop,
+// M x N FMAs per j, each operand in a register or one load away (base + index addressing).
 template <int M, int N>
-inline void accumulate(Float8 (&acc)[M][N], const float* in, std::size_t stride, int count, const float* w) {
-    // One pointer per pixel, indexed by j: base + index addressing, no address arithmetic.
-    const float* pixel[M];
-#pragma GCC unroll 16
-    for (int m = 0; m < M; ++m) pixel[m] = in + std::size_t(m) * stride;
+inline void accumulate(Float8 (&acc)[M][N], const float* const (&pixel)[M], int count, const float* w) {
 #pragma GCC unroll 2
     for (int j = 0; j < count; ++j) {
         Float8 wv[N];
@@ -55,6 +51,15 @@ inline void accumulate(Float8 (&acc)[M][N], const float* in, std::size_t stride,
     }
 }
 
+// The same for M pixels `stride` floats apart starting at `in`.
+template <int M, int N>
+inline void accumulate(Float8 (&acc)[M][N], const float* in, std::size_t stride, int count, const float* w) {
+    const float* pixel[M];
+#pragma GCC unroll 16
+    for (int m = 0; m < M; ++m) pixel[m] = in + std::size_t(m) * stride;
+    accumulate<M, N>(acc, pixel, count, w);
+}
+
 // M consecutive output pixels starting at column x, all of whose taps in [kxBegin, kxEnd]
 // exist; out points at the first pixel's first channel of this block.
 template <int M, int N>
@@ -67,7 +72,7 @@ void convBlock(const BlockArgs& a, int x, float* out) {
         for (int m = 0; m < M; ++m) acc[m][n] = b;
     }
     const int r = a.radius;
-    if (a.sourceCount == 1 && a.kxBegin == -r && a.kxEnd == r) {
+    if (a.sourceCount == 1 && !a.sources[0].upsampled && a.kxBegin == -r && a.kxEnd == r) {
         // One source and a full row of taps: for a given ky the (kx, channel) pairs are
         // contiguous in both the input row and the packed weights, so the taps of a row run
         // as one loop. Same accumulation order as tap by tap.
@@ -82,10 +87,20 @@ void convBlock(const BlockArgs& a, int x, float* out) {
             for (int kx = a.kxBegin; kx <= a.kxEnd; ++kx) {
                 const float* w = a.weights + std::size_t((ky + r) * a.size + kx + r) * a.tapStride;
                 for (int s = 0; s < a.sourceCount; ++s) {
-                    const int channels = a.sources[s].channels;
-                    const float* in =
-                        a.sources[s].data + (std::size_t(a.y + ky) * a.width + std::size_t(x + kx)) * channels;
-                    accumulate<M, N>(acc, in, std::size_t(channels), channels, w);
+                    const ConvSource& source = a.sources[s];
+                    const int channels = source.channels;
+                    if (source.upsampled) {
+                        const std::size_t sourceWidth = std::size_t(a.width + 1) / 2;
+                        const float* row = source.data + std::size_t((a.y + ky) / 2) * sourceWidth * channels;
+                        const float* pixel[M];
+#pragma GCC unroll 16
+                        for (int m = 0; m < M; ++m) pixel[m] = row + std::size_t((x + m + kx) / 2) * channels;
+                        accumulate<M, N>(acc, pixel, channels, w);
+                    } else {
+                        const float* in =
+                            source.data + (std::size_t(a.y + ky) * a.width + std::size_t(x + kx)) * channels;
+                        accumulate<M, N>(acc, in, std::size_t(channels), channels, w);
+                    }
                     w += std::size_t(channels) * (N * kLanes);
                 }
             }

@@ -14,10 +14,14 @@ namespace affinity {
 
 enum class Activation { None, LeakyRelu };  // leaky ReLU slope 0.01
 
-// One input of a convolution: an NHWC image of the output's height and width.
+// One input of a convolution: an NHWC image of the output's height and width, or, when
+// `upsampled`, of half of it (rounded up) read as its nearest-neighbour 2x upsampling: output
+// pixel (y, x) sees source pixel (y / 2, x / 2). The decoder reads its coarser level that way
+// instead of materialising the upsampled map.
 struct ConvSource {
     const float* data;
     int channels;
+    bool upsampled = false;
 };
 
 // Weights and bias of a size x size convolution (size 1 or 3), repacked for the kernel.
@@ -53,6 +57,7 @@ private:
 // act(conv(concat(sources)) + bias) with zero padding, for images of height x width.
 // outputRow points at column 0 of row y of an NHWC output with conv.outChannels() channels.
 // The sources' channel counts must add up to conv.inChannels(); the output must not alias them.
+// An upsampled source is (height + 1) / 2 x (width + 1) / 2.
 void convolveRow(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width,
                  int y, int x0, int x1, Activation activation, float* outputRow);
 

@@ -127,6 +127,30 @@ private:
     std::chrono::steady_clock::time_point last_ = std::chrono::steady_clock::now();
 };
 
+// What the U-Net's last full-resolution convolution reads: the coarser level read upsampled and
+// the skip connection, or (in a decoder block of several convolutions) the previous output.
+struct UnetTail {
+    FeatureMap coarse;  // empty when the convolution reads `input` alone
+    FeatureMap input;
+
+    std::vector<ConvSource> sources() const {
+        std::vector<ConvSource> list;
+        if (!coarse.empty()) list.push_back({coarse.data(), coarse.channels(), true});
+        list.push_back({input.data(), input.channels()});
+        return list;
+    }
+};
+
+// The per-pixel parameters of the filters (docs/MODEL.md section 5).
+struct KernelMaps {
+    std::vector<FeatureMap> features, bandwidth, centre;  // per kernel: F channels, 1, 1
+    FeatureMap temporalBandwidth, lambda;                 // 1 channel each
+
+    KernelParams kernel(int k) const {
+        return KernelParams{&features[std::size_t(k)], &bandwidth[std::size_t(k)], &centre[std::size_t(k)]};
+    }
+};
+
 }  // namespace
 
 struct Denoiser::State {
@@ -141,13 +165,16 @@ struct Denoiser::State {
     // Every map with as many channels as the network's layers comes from the pool and goes back
     // as soon as it is dead; the few-channel maps below are kept from frame to frame.
     FeatureMapPool pool;
-    FeatureMap radiance, historyRadiance, temporalBandwidth, lambda, filterA, filterB, warpedOutput, validMap;
-    std::vector<FeatureMap> kernelBandwidth, kernelCentre;
+    FeatureMap radiance, historyRadiance;
 
     State(Model m, DenoiserOptions o) : model(std::move(m)), options(o) {}
-    FeatureMap runUnet(const Network& net, const FeatureMap& embedding, const FeatureMap& historyEmbedding);
+    // The U-Net up to the input of its last full-resolution convolution, which
+    // kernelParameters() fuses with the head.
+    UnetTail runUnet(const Network& net, const FeatureMap& embedding, const FeatureMap& historyEmbedding);
     // Applies the convolutions of `block` in turn to `map`, each output replacing its input.
-    void runBlock(const std::vector<Conv2d>& block, std::size_t first, FeatureMap& map);
+    void runBlock(const std::vector<Conv2d>& block, std::size_t first, std::size_t end, FeatureMap& map);
+    KernelMaps kernelParameters(const Network& net, const UnetTail& tail);
+    void give(KernelMaps& maps);
 };
 
 Denoiser::Denoiser(Model model, DenoiserOptions options)
@@ -161,8 +188,9 @@ const DenoiserOptions& Denoiser::options() const { return state_->options; }
 
 void Denoiser::reset() { state_->hasHistory = false; }
 
-void Denoiser::State::runBlock(const std::vector<Conv2d>& block, std::size_t first, FeatureMap& map) {
-    for (std::size_t j = first; j < block.size(); ++j) {
+void Denoiser::State::runBlock(const std::vector<Conv2d>& block, std::size_t first, std::size_t end,
+                              FeatureMap& map) {
+    for (std::size_t j = first; j < end; ++j) {
         FeatureMap next = pool.take(map.height(), map.width(), block[j].outChannels());
         block[j].apply(map, Activation::LeakyRelu, next);
         pool.give(map);
@@ -170,9 +198,8 @@ void Denoiser::State::runBlock(const std::vector<Conv2d>& block, std::size_t fir
     }
 }
 
-// The head's output: U-Net(concat(embedding, historyEmbedding)).
-FeatureMap Denoiser::State::runUnet(const Network& net, const FeatureMap& embedding,
-                                    const FeatureMap& historyEmbedding) {
+UnetTail Denoiser::State::runUnet(const Network& net, const FeatureMap& embedding,
+                                  const FeatureMap& historyEmbedding) {
     const std::size_t levels = net.encoder.size();
     std::vector<FeatureMap> encoderOut(levels);  // the skip connections
     for (std::size_t level = 0; level < levels; ++level) {
@@ -189,28 +216,87 @@ FeatureMap Denoiser::State::runUnet(const Network& net, const FeatureMap& embedd
             block[0].apply(pooled, Activation::LeakyRelu, out);
             pool.give(pooled);
         }
-        runBlock(block, 1, out);
+        runBlock(block, 1, block.size(), out);
     }
     const FeatureMap& deepest = encoderOut[levels - 1];
     FeatureMap low = pool.take((deepest.height() + 1) / 2, (deepest.width() + 1) / 2, deepest.channels());
     maxPool2x2(deepest, low);
-    runBlock(net.bottleneck, 0, low);
+    runBlock(net.bottleneck, 0, net.bottleneck.size(), low);
+    // Decoder levels, the coarser level read upsampled; level 0 stops before its last convolution.
     for (std::size_t l = levels; l-- > 0;) {
         FeatureMap& skip = encoderOut[l];
-        FeatureMap upsampled = pool.take(skip.height(), skip.width(), low.channels());
-        upsampleNearest(low, skip.height(), skip.width(), upsampled);
-        pool.give(low);
         const std::vector<Conv2d>& block = net.decoder[l];
-        low = pool.take(skip.height(), skip.width(), block[0].outChannels());
-        block[0].apply(upsampled, skip, Activation::LeakyRelu, low);
-        pool.give(upsampled);
+        if (l == 0 && block.size() == 1) return UnetTail{std::move(low), std::move(skip)};
+        FeatureMap out = pool.take(skip.height(), skip.width(), block[0].outChannels());
+        block[0].applyUpsampled(low, skip, Activation::LeakyRelu, out);
+        pool.give(low);
         pool.give(skip);
-        runBlock(block, 1, low);
+        runBlock(block, 1, l == 0 ? block.size() - 1 : block.size(), out);
+        low = std::move(out);
     }
-    FeatureMap head = pool.take(low.height(), low.width(), net.head->outChannels());
-    net.head->apply(low, Activation::None, head);
-    pool.give(low);
-    return head;
+    return UnetTail{FeatureMap(), std::move(low)};
+}
+
+// The last full-resolution convolution and the head, fused tile by tile so that neither
+// full-resolution output exists as a whole: each tile's head output goes straight into the
+// parameter maps.
+KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail& tail) {
+    const int rows = tail.input.height(), columns = tail.input.width();
+    const int K = net.kernels, F = net.affinityFeatures;
+    KernelMaps maps;
+    for (int k = 0; k < K; ++k) {
+        maps.features.push_back(pool.take(rows, columns, F));
+        maps.bandwidth.push_back(pool.take(rows, columns, 1));
+        maps.centre.push_back(pool.take(rows, columns, 1));
+    }
+    maps.temporalBandwidth = pool.take(rows, columns, 1);
+    maps.lambda = pool.take(rows, columns, 1);
+
+    const Conv2d& last = net.decoder[0].back();
+    const Conv2d& head = *net.head;
+    const std::vector<ConvSource> sources = tail.sources();
+    int sourceChannels = 0;
+    for (const ConvSource& source : sources) sourceChannels += source.channels;
+    // Checked here: an exception cannot leave the parallel region below.
+    if (sourceChannels != last.inChannels() || head.inChannels() != last.outChannels() ||
+        head.outChannels() != net.headChannels())
+        throw Error("denoise: the model's last layers do not fit together");
+    const int tiles = (columns + kConvTileWidth - 1) / kConvTileWidth;
+    const long long tasks = (long long)rows * tiles;
+#pragma omp parallel
+    {
+        std::vector<float> decoded(std::size_t(columns) * std::size_t(last.outChannels()));
+        std::vector<float> params(std::size_t(columns) * std::size_t(head.outChannels()));
+#pragma omp for schedule(dynamic)
+        for (long long task = 0; task < tasks; ++task) {
+            const int y = int(task / tiles);
+            const int x0 = int(task % tiles) * kConvTileWidth;
+            const int x1 = std::min(columns, x0 + kConvTileWidth);
+            last.applyRow(sources.data(), int(sources.size()), rows, columns, y, x0, x1, Activation::LeakyRelu,
+                          decoded.data());
+            const ConvSource decodedRow{decoded.data(), last.outChannels()};
+            head.applyRow(&decodedRow, 1, 1, columns, 0, x0, x1, Activation::None, params.data());
+            for (int x = x0; x < x1; ++x) {
+                const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
+                for (std::size_t k = 0; k < std::size_t(K); ++k) {
+                    const float* base = o + int(k) * (F + 2);
+                    std::copy(base, base + F, maps.features[k].pixel(y, x));
+                    maps.bandwidth[k].pixel(y, x)[0] = base[F];
+                    maps.centre[k].pixel(y, x)[0] = sigmoid(base[F + 1]);
+                }
+                maps.temporalBandwidth.pixel(y, x)[0] = o[K * (F + 2)];
+                maps.lambda.pixel(y, x)[0] = sigmoid(o[K * (F + 2) + 1]);
+            }
+        }
+    }
+    return maps;
+}
+
+void Denoiser::State::give(KernelMaps& maps) {
+    for (std::vector<FeatureMap>* list : {&maps.features, &maps.bandwidth, &maps.centre})
+        for (FeatureMap& map : *list) pool.give(map);
+    pool.give(maps.temporalBandwidth);
+    pool.give(maps.lambda);
 }
 
 std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* report) {
@@ -278,71 +364,49 @@ std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport
     clock.mark("warp history");
 
     // 4-5. U-Net and per-pixel parameters.
-    FeatureMap head = s.runUnet(net, embedding, historyEmbedding);
+    UnetTail tail = s.runUnet(net, embedding, historyEmbedding);
     clock.mark("u-net");
+    KernelMaps params = s.kernelParameters(net, tail);
+    s.pool.give(tail.coarse);
+    s.pool.give(tail.input);
     const int K = net.kernels, F = net.affinityFeatures;
-    std::vector<FeatureMap> kernelFeatures(static_cast<std::size_t>(K));
-    s.kernelBandwidth.resize(std::size_t(K));
-    s.kernelCentre.resize(std::size_t(K));
-    for (std::size_t k = 0; k < std::size_t(K); ++k) {
-        kernelFeatures[k] = s.pool.take(height, width, F);
-        s.kernelBandwidth[k].resize(height, width, 1);
-        s.kernelCentre[k].resize(height, width, 1);
-    }
-    s.temporalBandwidth.resize(height, width, 1);
-    s.lambda.resize(height, width, 1);
-#pragma omp parallel for schedule(static)
-    for (int y = 0; y < height; ++y)
-        for (int x = 0; x < width; ++x) {
-            const float* o = head.pixel(y, x);
-            for (std::size_t k = 0; k < std::size_t(K); ++k) {
-                const float* base = o + int(k) * (F + 2);
-                std::copy(base, base + F, kernelFeatures[k].pixel(y, x));
-                s.kernelBandwidth[k].pixel(y, x)[0] = base[F];
-                s.kernelCentre[k].pixel(y, x)[0] = sigmoid(base[F + 1]);
-            }
-            s.temporalBandwidth.pixel(y, x)[0] = o[K * (F + 2)];
-            s.lambda.pixel(y, x)[0] = sigmoid(o[K * (F + 2) + 1]);
-        }
-    s.pool.give(head);
 
     // 3 (continued). Accumulate with the learned lambda; keep for the next frame.
-    blendInto(embedding, s.lambda, historyEmbedding);
+    blendInto(embedding, params.lambda, historyEmbedding);
     s.embeddingHistory = std::move(historyEmbedding);
     s.pool.give(embedding);
-    blend(s.radiance, s.historyRadiance, s.lambda, s.filterA);
-    s.radianceHistory = s.filterA;
+    FeatureMap filterA = s.pool.take(height, width, 3), filterB = s.pool.take(height, width, 3);
+    blend(s.radiance, s.historyRadiance, params.lambda, filterA);
+    s.radianceHistory = filterA;
     clock.mark("kernel parameters and accumulation");
 
     // 6. Dilated spatial kernels on the accumulated radiance.
-    auto params = [&](int k) {
-        return KernelParams{&kernelFeatures[std::size_t(k)], &s.kernelBandwidth[std::size_t(k)],
-                            &s.kernelCentre[std::size_t(k)]};
-    };
-    FeatureMap* in = &s.filterA;
-    FeatureMap* out = &s.filterB;
+    FeatureMap* in = &filterA;
+    FeatureMap* out = &filterB;
     for (int k = s.options.allKernels ? 0 : K - 1; k + 1 < K; ++k) {
-        affinityFilter(*in, params(k), net.tapSize, 1 << k, *out);
+        affinityFilter(*in, params.kernel(k), net.tapSize, 1 << k, *out);
         std::swap(in, out);
     }
     clock.mark("spatial kernels");
     // 7. The last kernel, with temporal taps on the warped previous output.
     if (history && s.options.temporalKernel) {
-        warpBilinear(s.output, frame.motion, s.warpedOutput);
+        FeatureMap warpedOutput = s.pool.take(height, width, 3), validMap = s.pool.take(height, width, 1);
         FeatureMap warpedFeatures = s.pool.take(height, width, F);
+        warpBilinear(s.output, frame.motion, warpedOutput);
         warpBilinear(s.lastFeatures, frame.motion, warpedFeatures);
-        s.validMap.resize(height, width, 1);
-        std::copy(valid, valid + frame.pixelCount(), s.validMap.data());
-        affinityFilterTemporal(*in, params(K - 1), net.tapSize, 1 << (K - 1), s.temporalBandwidth, s.warpedOutput,
-                               warpedFeatures, s.validMap, *out);
-        s.pool.give(warpedFeatures);
+        std::copy(valid, valid + frame.pixelCount(), validMap.data());
+        affinityFilterTemporal(*in, params.kernel(K - 1), net.tapSize, 1 << (K - 1), params.temporalBandwidth,
+                               warpedOutput, warpedFeatures, validMap, *out);
+        for (FeatureMap* map : {&warpedOutput, &validMap, &warpedFeatures}) s.pool.give(*map);
     } else {
-        affinityFilter(*in, params(K - 1), net.tapSize, 1 << (K - 1), *out);
+        affinityFilter(*in, params.kernel(K - 1), net.tapSize, 1 << (K - 1), *out);
     }
     std::swap(s.output, *out);
+    s.pool.give(filterA);
+    s.pool.give(filterB);
     s.pool.give(s.lastFeatures);
-    s.lastFeatures = std::move(kernelFeatures[std::size_t(K - 1)]);
-    for (FeatureMap& map : kernelFeatures) s.pool.give(map);
+    s.lastFeatures = std::move(params.features[std::size_t(K - 1)]);
+    s.give(params);
     s.hasHistory = true;
     clock.mark("temporal kernel");
 

@@ -9,9 +9,6 @@
 namespace affinity {
 namespace {
 
-// Columns per task: the tile's three input rows stay in L2 while each channel block's
-// weights stay in L1.
-constexpr int kTileWidth = 128;
 // Below this many multiply-adds a layer runs on the calling thread: waking the team costs
 // more than it saves (the U-Net's deepest levels at small frame sizes).
 constexpr double kParallelMinFma = 2e5;
@@ -50,11 +47,41 @@ void Conv2d::apply(const FeatureMap& first, const FeatureMap& second, Activation
     run(sources + offset, count, first.height(), first.width(), activation, output);
 }
 
+void Conv2d::applyUpsampled(const FeatureMap& coarse, const FeatureMap& skip, Activation activation,
+                            FeatureMap& output) const {
+    if (coarse.height() != (skip.height() + 1) / 2 || coarse.width() != (skip.width() + 1) / 2)
+        throw Error("Conv2d: coarse input " + shapeText(coarse) + " is not half the size of the skip input " +
+                    shapeText(skip));
+    if (coarse.channels() + skip.channels() != inChannels())
+        throw Error("Conv2d: upsampled " + shapeText(coarse) + " and skip " + shapeText(skip) + " have " +
+                    std::to_string(coarse.channels() + skip.channels()) + " channels, the layer expects " +
+                    std::to_string(inChannels()));
+    if (&coarse == &output || &skip == &output) throw Error("Conv2d: the output must not be an input");
+    const ConvSource sources[2] = {{coarse.data(), coarse.channels(), true}, {skip.data(), skip.channels()}};
+    const int offset = coarse.channels() == 0 ? 1 : 0;
+    const int count = 2 - offset - (skip.channels() == 0 ? 1 : 0);
+    run(sources + offset, count, skip.height(), skip.width(), activation, output);
+}
+
+void Conv2d::applyRow(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
+                      Activation activation, float* outRow) const {
+    int channels = 0;
+    for (int s = 0; s < sourceCount; ++s) channels += sources[s].channels;
+    if (channels != inChannels())
+        throw Error("Conv2d: the inputs have " + std::to_string(channels) + " channels, the layer expects " +
+                    std::to_string(inChannels()));
+    if (y < 0 || y >= height || x0 < 0 || x1 > width || x0 > x1)
+        throw Error("Conv2d: row " + std::to_string(y) + ", columns " + std::to_string(x0) + ".." +
+                    std::to_string(x1) + " are outside a " + std::to_string(height) + "x" + std::to_string(width) +
+                    " image");
+    convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, outRow);
+}
+
 void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
                  FeatureMap& output) const {
     output.resize(height, width, outChannels());
     if (output.empty()) return;
-    const int tiles = (width + kTileWidth - 1) / kTileWidth;
+    const int tiles = (width + kConvTileWidth - 1) / kConvTileWidth;
     const long long tasks = (long long)height * tiles;
     const double fmaCount = double(height) * width * outChannels() * inChannels() * size() * size();
     // Each task owns whole output pixels, so the split cannot change any value; dynamic
@@ -62,8 +89,8 @@ void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int wid
 #pragma omp parallel for schedule(dynamic) if (fmaCount >= kParallelMinFma)
     for (long long task = 0; task < tasks; ++task) {
         const int y = int(task / tiles);
-        const int x0 = int(task % tiles) * kTileWidth;
-        const int x1 = std::min(width, x0 + kTileWidth);
+        const int x0 = int(task % tiles) * kConvTileWidth;
+        const int x1 = std::min(width, x0 + kConvTileWidth);
         convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0));
     }
 }

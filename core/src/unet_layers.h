@@ -8,6 +8,10 @@
 
 namespace affinity {
 
+// Output columns per unit of work: a tile's input rows stay in L2 while each channel block's
+// weights stay in L1. Row-fused callers of Conv2d::applyRow use it too.
+inline constexpr int kConvTileWidth = 128;
+
 // A convolution's weights, repacked once at load time for the kernel's access pattern.
 class Conv2d {
 public:
@@ -26,6 +30,17 @@ public:
     // decoder does with its skip connections, without materialising the concatenation.
     // Bitwise equal to apply() on the explicit concatenation.
     void apply(const FeatureMap& first, const FeatureMap& second, Activation activation, FeatureMap& output) const;
+    // The same on concat(upsampleNearest(coarse), skip), output the skip's size, without
+    // materialising the upsampled map; coarse must be exactly ceil(h / 2) x ceil(w / 2).
+    // Bitwise equal to upsampleNearest followed by the two-input apply().
+    void applyUpsampled(const FeatureMap& coarse, const FeatureMap& skip, Activation activation,
+                        FeatureMap& output) const;
+    // Columns [x0, x1) of output row y for height x width images, on the calling thread, into
+    // outRow (row y's column 0 of an NHWC image with outChannels() channels, or a buffer of
+    // width x outChannels() floats): for fusing a layer with what consumes its rows. Results
+    // equal apply()'s. Throws affinity::Error when the channel counts or the range are wrong.
+    void applyRow(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
+                  Activation activation, float* outRow) const;
 
 private:
     void run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,

@@ -1,6 +1,7 @@
 // The U-Net layers against naive double-precision references (docs/MODEL.md section 4):
 // convolutions over many shapes and channel counts, the two-input (skip connection) form,
-// pooling and upsampling on odd sizes, and independence from the thread count.
+// the coarser level read upsampled, row by row, pooling and upsampling on odd sizes, and
+// independence from the thread count.
 #include <gtest/gtest.h>
 #include <omp.h>
 
@@ -189,6 +190,64 @@ TEST(Conv2d, TwoInputsEqualExplicitConcat) {
                 }
 }
 
+TEST(Conv2d, UpsampledInputEqualsExplicitUpsampling) {
+    std::mt19937 rng(13);
+    const int splits[][2] = {{1, 1}, {3, 5}, {32, 24}, {13, 35}};
+    for (const Size size : kSizes)
+        for (const auto& split : splits)
+            for (const int out : {5, 24})
+                for (const int kernel : {1, 3}) {
+                    SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " split " +
+                                 std::to_string(split[0]) + "+" + std::to_string(split[1]) + " out " +
+                                 std::to_string(out) + " size " + std::to_string(kernel));
+                    const FeatureMap coarse =
+                        randomMap((size.height + 1) / 2, (size.width + 1) / 2, split[0], rng);
+                    const FeatureMap skip = randomMap(size.height, size.width, split[1], rng);
+                    const ConvWeights w = randomConv(out, split[0] + split[1], kernel, rng);
+                    const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size);
+                    FeatureMap upsampled, fused, explicitly;
+                    upsampleNearest(coarse, size.height, size.width, upsampled);
+                    conv.applyUpsampled(coarse, skip, Activation::LeakyRelu, fused);
+                    conv.apply(upsampled, skip, Activation::LeakyRelu, explicitly);
+                    ASSERT_TRUE(bitwiseEqual(fused, explicitly));
+                }
+}
+
+TEST(Conv2d, RowsEqualTheWholeImage) {
+    std::mt19937 rng(14);
+    const FeatureMap coarse = randomMap(16, 66, 7, rng);
+    const FeatureMap skip = randomMap(31, 131, 5, rng);
+    const ConvWeights w = randomConv(19, 12, 3, rng);
+    const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size);
+    FeatureMap whole;
+    conv.applyUpsampled(coarse, skip, Activation::LeakyRelu, whole);
+    const ConvSource sources[2] = {{coarse.data(), coarse.channels(), true}, {skip.data(), skip.channels()}};
+    FeatureMap rows(31, 131, 19);
+    rows.fill(-1.0f);
+    // Ragged column ranges, each row filled piece by piece.
+    for (int y = 0; y < 31; ++y)
+        for (const auto& range : {std::pair{0, 3}, std::pair{3, 70}, std::pair{70, 131}})
+            conv.applyRow(sources, 2, 31, 131, y, range.first, range.second, Activation::LeakyRelu,
+                          rows.pixel(y, 0));
+    EXPECT_TRUE(bitwiseEqual(rows, whole));
+    float out[131 * 19];
+    EXPECT_THROW(conv.applyRow(sources, 1, 31, 131, 0, 0, 131, Activation::None, out), Error);
+    EXPECT_THROW(conv.applyRow(sources, 2, 31, 131, 31, 0, 131, Activation::None, out), Error);
+    EXPECT_THROW(conv.applyRow(sources, 2, 31, 131, 0, 0, 132, Activation::None, out), Error);
+}
+
+TEST(Conv2d, RejectsAnUpsampledInputOfTheWrongSize) {
+    std::mt19937 rng(15);
+    const ConvWeights w = randomConv(4, 6, 3, rng);
+    const Conv2d conv(w.weight.data(), w.bias.data(), 4, 6, 3);
+    FeatureMap output;
+    EXPECT_THROW(conv.applyUpsampled(randomMap(4, 4, 3, rng), randomMap(7, 9, 3, rng), Activation::None, output),
+                 Error);
+    EXPECT_THROW(conv.applyUpsampled(randomMap(4, 5, 2, rng), randomMap(7, 9, 3, rng), Activation::None, output),
+                 Error);
+    EXPECT_NO_THROW(conv.applyUpsampled(randomMap(4, 5, 3, rng), randomMap(7, 9, 3, rng), Activation::None, output));
+}
+
 TEST(Conv2d, ThreadCountDoesNotChangeResults) {
     std::mt19937 rng(5);
     const int shapes[][3] = {{32, 32, 3}, {13, 35, 3}, {64, 64, 3}, {5, 32, 1}, {35, 13, 1}};
@@ -202,15 +261,19 @@ TEST(Conv2d, ThreadCountDoesNotChangeResults) {
         const ConvWeights w2 = randomConv(shape[1], shape[0] + 3, shape[2], rng);
         const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size);
         const Conv2d conv2(w2.weight.data(), w2.bias.data(), w2.out, w2.in, w2.size);
-        FeatureMap one, two, oneSkip, twoSkip;
+        const FeatureMap coarse = randomMap(31, 132, shape[0], rng);
+        FeatureMap one, two, oneSkip, twoSkip, oneUp, twoUp;
         omp_set_num_threads(1);
         conv.apply(input, Activation::LeakyRelu, one);
         conv2.apply(input, skip, Activation::LeakyRelu, oneSkip);
+        conv2.applyUpsampled(coarse, skip, Activation::LeakyRelu, oneUp);
         omp_set_num_threads(2);
         conv.apply(input, Activation::LeakyRelu, two);
         conv2.apply(input, skip, Activation::LeakyRelu, twoSkip);
+        conv2.applyUpsampled(coarse, skip, Activation::LeakyRelu, twoUp);
         EXPECT_TRUE(bitwiseEqual(one, two));
         EXPECT_TRUE(bitwiseEqual(oneSkip, twoSkip));
+        EXPECT_TRUE(bitwiseEqual(oneUp, twoUp));
     }
     omp_set_num_threads(saved);
 }
