@@ -1,5 +1,5 @@
 // The buffer pool behind the denoiser's memory bound: it must hand back the same memory, pick
-// the tightest fit, and grow rather than pile up buffers.
+// the tightest fit without cutting a much larger map down, and grow rather than pile up buffers.
 #include <gtest/gtest.h>
 
 #include "feature_map_pool.h"
@@ -30,6 +30,19 @@ TEST(FeatureMapPool, PicksTheTightestFreeMapThatFits) {
     FeatureMap taken = pool.take(10, 10, 3);
     EXPECT_EQ(taken.data(), mediumMemory);
     EXPECT_EQ(pool.freeCapacity(), 100u * 8 + 100u * 1);
+}
+
+TEST(FeatureMapPool, KeepsAMapMoreThanTwiceTheRequestForLater) {
+    FeatureMapPool pool;
+    FeatureMap big = pool.take(10, 10, 8);
+    const float* bigMemory = big.data();
+    pool.give(big);
+    FeatureMap small = pool.take(10, 10, 3);  // 800 > 2 x 300: a new map
+    EXPECT_NE(small.data(), bigMemory);
+    EXPECT_EQ(pool.freeCapacity(), 800u);
+    FeatureMap half = pool.take(10, 10, 4);  // 800 = 2 x 400: the free map
+    EXPECT_EQ(half.data(), bigMemory);
+    EXPECT_EQ(pool.freeCapacity(), 0u);
 }
 
 TEST(FeatureMapPool, GrowsTheLargestFreeMapWhenNoneFits) {
