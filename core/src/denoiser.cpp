@@ -31,26 +31,31 @@ float depthScale(const SampleFrameView& frame) {
     return count > 0 ? float(double(count) / sum) : 0.0f;
 }
 
-// Per-pixel mean radiance with non-finite and negative values read as 0.
-void noisyRadiance(const SampleFrameView& frame, FeatureMap& out) {
-    out.resize(frame.height, frame.width, 3);
-    const int spp = frame.spp;
-    const float scale = 1.0f / float(spp);
+// Adds each pixel's sample radiance, non-finite and negative values read as 0, to `sum`
+// (started at 0 when `first`): the noisy radiance before dividing by the sample count.
+void addRadiance(const SampleFrameView& frame, FeatureMap& sum, bool first) {
+    if (first) sum.resize(frame.height, frame.width, 3);
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < frame.height; ++y) {
         for (int x = 0; x < frame.width; ++x) {
-            float* o = out.pixel(y, x);
-            o[0] = o[1] = o[2] = 0.0f;
-            for (int s = 0; s < spp; ++s) {
+            float* o = sum.pixel(y, x);
+            if (first) o[0] = o[1] = o[2] = 0.0f;
+            for (int s = 0; s < frame.spp; ++s) {
                 const float* f = frame.sample(x, y, s);
                 for (int c = 0; c < 3; ++c) {
                     float d = f[channel::kDiffuse + c], sp = f[channel::kSpecular + c];
                     o[c] += (std::isfinite(d) && d > 0.0f ? d : 0.0f) + (std::isfinite(sp) && sp > 0.0f ? sp : 0.0f);
                 }
             }
-            for (int c = 0; c < 3; ++c) o[c] *= scale;
         }
     }
+}
+
+void scale(FeatureMap& map, float factor) {
+    float* values = map.data();
+    const std::size_t count = map.size();
+#pragma omp parallel for simd schedule(static)
+    for (std::size_t i = 0; i < count; ++i) values[i] *= factor;
 }
 
 // warped = current wherever the history is not valid.
@@ -157,15 +162,24 @@ struct Denoiser::State {
     Model model;
     DenoiserOptions options;
     bool hasHistory = false;
-    int width = 0, height = 0;
-    Matrix4 worldToCamera{};
-    float meanDepth = 0.0f;
+    // The previous frame's size, camera and mean depth, to tell when history cannot apply.
+    int lastWidth = 0, lastHeight = 0;
+    Matrix4 lastWorldToCamera{};
+    float lastMeanDepth = 0.0f;
     // Temporal state (docs/MODEL.md sections 3 and 7).
     FeatureMap embeddingHistory, radianceHistory, output, lastFeatures;
     // Every map with as many channels as the network's layers comes from the pool and goes back
     // as soon as it is dead; the few-channel maps below are kept from frame to frame.
     FeatureMapPool pool;
     FeatureMap radiance, historyRadiance;
+    // A frame arriving in batches (addSamples): sums kept until finishFrame().
+    struct Pending {
+        FeatureMap hiddenSum;  // from the pool
+        int spp = 0, width = 0, height = 0;
+        float depthScale = 0.0f;
+        long long invalidRadiance = 0;
+        double milliseconds = 0.0;
+    } pending;
 
     State(Model m, DenoiserOptions o) : model(std::move(m)), options(o) {}
     // The U-Net up to the input of its last full-resolution convolution, which
@@ -175,6 +189,11 @@ struct Denoiser::State {
     void runBlock(const std::vector<Conv2d>& block, std::size_t first, std::size_t end, FeatureMap& map);
     KernelMaps kernelParameters(const Network& net, const UnetTail& tail);
     void give(KernelMaps& maps);
+    // Everything after the embedding and the noisy radiance (in `radiance`): history, U-Net,
+    // filters. `local` already holds the embedding stage.
+    std::vector<float> denoiseEmbedded(FeatureMap embedding, float depthScale, const FrameInfo& info,
+                                       const float* motion, const float* valid, DenoiseReport& local,
+                                       StageClock& clock, DenoiseReport* report);
 };
 
 Denoiser::Denoiser(Model model, DenoiserOptions options)
@@ -318,43 +337,115 @@ std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport
     const int width = frame.width, height = frame.height;
     if (width < 1 || height < 1 || frame.spp < 1) throw Error("denoise: the frame is empty");
     if (!frame.samples || !frame.motion || !frame.valid) throw Error("denoise: the frame lacks a buffer");
+    if (s.pending.spp > 0)
+        throw Error("denoise: " + std::to_string(s.pending.spp) +
+                    " samples added with addSamples() wait for finishFrame() (or discardSamples())");
 
+    // 1-2. Per-sample embedding averaged per pixel; noisy radiance.
+    const float depth = depthScale(frame);
+    FeatureMap embedding = s.pool.take(height, width, net.embedding->outChannels());
+    local.invalidRadiance = net.embedding->apply(frame.samples, height, width, frame.spp, depth, embedding);
+    addRadiance(frame, s.radiance, true);
+    scale(s.radiance, 1.0f / float(frame.spp));
+    clock.mark("embedding");
+    return s.denoiseEmbedded(std::move(embedding), depth, frame.info, frame.motion, frame.valid, local, clock,
+                             report);
+}
+
+void Denoiser::addSamples(int width, int height, int spp, const float* samples) {
+    State& s = *state_;
+    const auto start = std::chrono::steady_clock::now();
+    if (width < 1 || height < 1 || spp < 1) throw Error("addSamples: the batch is empty");
+    if (!samples) throw Error("addSamples: the batch has no samples buffer");
+    State::Pending& p = s.pending;
+    const bool first = p.spp == 0;
+    if (!first && (width != p.width || height != p.height))
+        throw Error("addSamples: a " + std::to_string(width) + "x" + std::to_string(height) +
+                    " batch does not match the frame's first batch of " + std::to_string(p.width) + "x" +
+                    std::to_string(p.height));
+    SampleFrameView batch;
+    batch.width = width;
+    batch.height = height;
+    batch.spp = spp;
+    batch.samples = samples;
+    const Network& net = s.model.network();
+    if (first) {
+        p.width = width;
+        p.height = height;
+        p.depthScale = depthScale(batch);
+        p.invalidRadiance = 0;
+        p.milliseconds = 0.0;
+        p.hiddenSum = s.pool.take(height, width, net.embedding->hiddenChannels());
+    }
+    p.invalidRadiance += net.embedding->accumulate(samples, height, width, spp, p.depthScale, p.hiddenSum, first);
+    addRadiance(batch, s.radiance, first);
+    p.spp += spp;
+    p.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid, const FrameInfo& info,
+                                         DenoiseReport* report) {
+    State& s = *state_;
+    State::Pending& p = s.pending;
+    if (p.spp == 0) throw Error("finishFrame: no samples were added with addSamples()");
+    if (!motion || !valid) throw Error("finishFrame: the frame lacks a motion or validity buffer");
+    const Network& net = s.model.network();
+    DenoiseReport local;
+    StageClock clock(local);
+    FeatureMap embedding = s.pool.take(p.height, p.width, net.embedding->outChannels());
+    net.embedding->finish(p.hiddenSum, p.spp, embedding);
+    scale(s.radiance, 1.0f / float(p.spp));
+    local.invalidRadiance = p.invalidRadiance;
+    const float depth = p.depthScale;
+    s.pool.give(p.hiddenSum);
+    const double addMilliseconds = p.milliseconds;
+    p.spp = 0;
+    clock.mark("embedding");
+    local.stageMilliseconds.back().second += addMilliseconds;  // the batches' share of the stage
+    return s.denoiseEmbedded(std::move(embedding), depth, info, motion, valid, local, clock, report);
+}
+
+void Denoiser::discardSamples() {
+    state_->pending.spp = 0;
+    state_->pool.give(state_->pending.hiddenSum);
+}
+
+int Denoiser::pendingSamples() const { return state_->pending.spp; }
+
+std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float depthScale, const FrameInfo& info,
+                                                    const float* motion, const float* valid, DenoiseReport& local,
+                                                    StageClock& clock, DenoiseReport* report) {
+    State& s = *this;
+    const Network& net = s.model.network();
+    const int width = embedding.width(), height = embedding.height();
     // Drop history where it cannot apply.
-    const float scale = depthScale(frame);
-    const float meanDepth = scale > 0.0f ? 1.0f / scale : 0.0f;
+    const float meanDepth = depthScale > 0.0f ? 1.0f / depthScale : 0.0f;
     if (s.hasHistory) {
         double degrees = 0.0, distance = 0.0;
-        cameraChange(s.worldToCamera, frame.info.worldToCamera, degrees, distance);
-        if (width != s.width || height != s.height)
+        cameraChange(s.lastWorldToCamera, info.worldToCamera, degrees, distance);
+        if (width != s.lastWidth || height != s.lastHeight)
             local.resetReason = "frame size changed";
         else if (degrees > 45.0)
             local.resetReason = "camera turned by " + std::to_string(int(degrees)) + " degrees";
-        else if (meanDepth > 0.0f && distance > 0.5 * std::max(meanDepth, s.meanDepth))
+        else if (meanDepth > 0.0f && distance > 0.5 * std::max(meanDepth, s.lastMeanDepth))
             local.resetReason = "camera moved by more than half the scene depth";
         if (!local.resetReason.empty()) s.hasHistory = false;
     }
-    s.width = width;
-    s.height = height;
-    s.worldToCamera = frame.info.worldToCamera;
-    s.meanDepth = meanDepth;
+    s.lastWidth = width;
+    s.lastHeight = height;
+    s.lastWorldToCamera = info.worldToCamera;
+    s.lastMeanDepth = meanDepth;
     if (!s.options.useHistory) s.hasHistory = false;
     const bool history = s.hasHistory;
     local.usedHistory = history;
-
-    // 1-2. Per-sample embedding averaged per pixel; noisy radiance.
-    const int E = net.embedding->outChannels();
-    FeatureMap embedding = s.pool.take(height, width, E);
-    local.invalidRadiance = net.embedding->apply(frame.samples, height, width, frame.spp, scale, embedding);
-    noisyRadiance(frame, s.radiance);
-    clock.mark("embedding");
+    const int E = embedding.channels();
 
     // 3. Histories: warped previous state where valid, the current frame elsewhere.
-    const float* valid = frame.valid;  // read only when there is history
     FeatureMap historyEmbedding = s.pool.take(height, width, E);
     if (history) {
-        warpBilinear(s.embeddingHistory, frame.motion, historyEmbedding);
+        warpBilinear(s.embeddingHistory, motion, historyEmbedding);
         keepWhereValid(historyEmbedding, embedding, valid);
-        warpBilinear(s.radianceHistory, frame.motion, s.historyRadiance);
+        warpBilinear(s.radianceHistory, motion, s.historyRadiance);
         keepWhereValid(s.historyRadiance, s.radiance, valid);
     } else {
         historyEmbedding = embedding;
@@ -392,9 +483,9 @@ std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport
     if (history && s.options.temporalKernel) {
         FeatureMap warpedOutput = s.pool.take(height, width, 3), validMap = s.pool.take(height, width, 1);
         FeatureMap warpedFeatures = s.pool.take(height, width, F);
-        warpBilinear(s.output, frame.motion, warpedOutput);
-        warpBilinear(s.lastFeatures, frame.motion, warpedFeatures);
-        std::copy(valid, valid + frame.pixelCount(), validMap.data());
+        warpBilinear(s.output, motion, warpedOutput);
+        warpBilinear(s.lastFeatures, motion, warpedFeatures);
+        std::copy(valid, valid + std::size_t(width) * std::size_t(height), validMap.data());
         affinityFilterTemporal(*in, params.kernel(K - 1), net.tapSize, 1 << (K - 1), params.temporalBandwidth,
                                warpedOutput, warpedFeatures, validMap, *out);
         for (FeatureMap* map : {&warpedOutput, &validMap, &warpedFeatures}) s.pool.give(*map);

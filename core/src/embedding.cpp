@@ -69,24 +69,17 @@ Embedding::Embedding(std::vector<DenseLayer> layers) {
 
 int Embedding::outChannels() const { return layers_.back().outChannels(); }
 
-long long Embedding::apply(const float* samples, int height, int width, int spp, float depthScale,
-                           FeatureMap& output) const {
-    if (height < 0 || width < 0 || spp <= 0)
-        throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
-                    std::to_string(spp) + " samples per pixel");
-    output.resize(height, width, outChannels());
-    const long long pixels = (long long)height * width;
-    if (pixels == 0) return 0;
+int Embedding::hiddenChannels() const {
+    return layers_.size() == 1 ? kFeatureCount : layers_[layers_.size() - 2].outChannels();
+}
 
-    // The last layer has no activation, so the mean over samples commutes with it: average
-    // the previous layer's outputs and apply the last layer once per pixel instead of once
-    // per sample (the same function up to float rounding, and S times fewer operations there).
+template <class Consume>
+long long Embedding::forEachChunk(const float* samples, long long pixels, int spp, float depthScale,
+                                  Consume consume) const {
     const int chunkPixels = std::max(1, kChunkSamples / spp);
     const int chunkSamples = chunkPixels * spp;
     const long long chunks = (pixels + chunkPixels - 1) / chunkPixels;
     const std::size_t layerCount = layers_.size();
-    const int meanChannels = layerCount == 1 ? kFeatureCount : layers_[layerCount - 2].outChannels();
-    const float inverseSpp = 1.0f / float(spp);
     long long bad = 0;
 
 #pragma omp parallel reduction(+ : bad) if (pixels * spp >= 4096)
@@ -95,7 +88,7 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
         AlignedVector<float> input(std::size_t(chunkSamples) * kFeatureCount);
         AlignedVector<float> ping(std::size_t(chunkSamples) * widest_);
         AlignedVector<float> pong(std::size_t(chunkSamples) * widest_);
-        AlignedVector<float> mean(std::size_t(chunkPixels) * std::max(meanChannels, kFeatureCount));
+        AlignedVector<float> scratch(std::size_t(chunkPixels) * std::max(hiddenChannels(), kFeatureCount));
 
 #pragma omp for schedule(dynamic, 16)
         for (long long chunk = 0; chunk < chunks; ++chunk) {
@@ -113,28 +106,105 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
                 source = {next, layers_[l].outChannels()};
                 next = next == ping.data() ? pong.data() : ping.data();
             }
+            consume(p0, count, source.data, scratch.data());
+        }
+    }
+    return bad;
+}
 
-            // Mean over each pixel's samples, in sample order.
-            const int channels = source.channels;
-            for (int p = 0; p < count; ++p) {
-                float* m = mean.data() + std::size_t(p) * channels;
-                const float* h = source.data + std::size_t(p) * spp * channels;
-                std::memcpy(m, h, std::size_t(channels) * sizeof(float));
-                for (int s = 1; s < spp; ++s) {
-                    const float* hs = h + std::size_t(s) * channels;
-#pragma omp simd
-                    for (int c = 0; c < channels; ++c) m[c] += hs[c];
-                }
-#pragma omp simd
-                for (int c = 0; c < channels; ++c) m[c] *= inverseSpp;
-            }
+long long Embedding::apply(const float* samples, int height, int width, int spp, float depthScale,
+                           FeatureMap& output) const {
+    if (height < 0 || width < 0 || spp <= 0)
+        throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
+                    std::to_string(spp) + " samples per pixel");
+    output.resize(height, width, outChannels());
+    const long long pixels = (long long)height * width;
+    if (pixels == 0) return 0;
 
-            const ConvSource meanSource{mean.data(), meanChannels};
+    // The last layer has no activation, so the mean over samples commutes with it: average
+    // the previous layer's outputs and apply the last layer once per pixel instead of once
+    // per sample (the same function up to float rounding, and S times fewer operations there).
+    const int channels = hiddenChannels();
+    const float inverseSpp = 1.0f / float(spp);
+    return forEachChunk(samples, pixels, spp, depthScale,
+                        [&](long long p0, int count, const float* hidden, float* mean) {
+                            // Mean over each pixel's samples, in sample order.
+                            for (int p = 0; p < count; ++p) {
+                                float* m = mean + std::size_t(p) * channels;
+                                const float* h = hidden + std::size_t(p) * spp * channels;
+                                std::memcpy(m, h, std::size_t(channels) * sizeof(float));
+                                for (int s = 1; s < spp; ++s) {
+                                    const float* hs = h + std::size_t(s) * channels;
+#pragma omp simd
+                                    for (int c = 0; c < channels; ++c) m[c] += hs[c];
+                                }
+#pragma omp simd
+                                for (int c = 0; c < channels; ++c) m[c] *= inverseSpp;
+                            }
+                            const ConvSource meanSource{mean, channels};
+                            convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count,
+                                        Activation::None, output.data() + std::size_t(p0) * outChannels());
+                        });
+}
+
+long long Embedding::accumulate(const float* samples, int height, int width, int spp, float depthScale,
+                                FeatureMap& hiddenSum, bool first) const {
+    if (height < 0 || width < 0 || spp <= 0)
+        throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
+                    std::to_string(spp) + " samples per pixel");
+    const int channels = hiddenChannels();
+    if (first)
+        hiddenSum.resize(height, width, channels);
+    else if (hiddenSum.height() != height || hiddenSum.width() != width || hiddenSum.channels() != channels)
+        throw Error("Embedding: a batch of " + std::to_string(height) + "x" + std::to_string(width) +
+                    " does not match the sum it is added to");
+    const long long pixels = (long long)height * width;
+    if (pixels == 0) return 0;
+    // The same additions in the same order as apply()'s mean, without the final scaling.
+    return forEachChunk(samples, pixels, spp, depthScale,
+                        [&](long long p0, int count, const float* hidden, float*) {
+                            for (int p = 0; p < count; ++p) {
+                                float* m = hiddenSum.data() + (std::size_t(p0) + std::size_t(p)) * channels;
+                                const float* h = hidden + std::size_t(p) * spp * channels;
+                                int s = 0;
+                                if (first) {
+                                    std::memcpy(m, h, std::size_t(channels) * sizeof(float));
+                                    s = 1;
+                                }
+                                for (; s < spp; ++s) {
+                                    const float* hs = h + std::size_t(s) * channels;
+#pragma omp simd
+                                    for (int c = 0; c < channels; ++c) m[c] += hs[c];
+                                }
+                            }
+                        });
+}
+
+void Embedding::finish(const FeatureMap& hiddenSum, int spp, FeatureMap& output) const {
+    const int channels = hiddenChannels();
+    if (hiddenSum.channels() != channels || spp <= 0)
+        throw Error("Embedding: finish needs a sum of " + std::to_string(channels) + " channels over >= 1 sample");
+    output.resize(hiddenSum.height(), hiddenSum.width(), outChannels());
+    const long long pixels = (long long)hiddenSum.height() * hiddenSum.width();
+    const float inverseSpp = 1.0f / float(spp);
+    const int chunkPixels = kChunkSamples;
+    const long long chunks = (pixels + chunkPixels - 1) / chunkPixels;
+#pragma omp parallel if (pixels >= 4096)
+    {
+        AlignedVector<float> mean(std::size_t(chunkPixels) * channels);
+#pragma omp for schedule(static)
+        for (long long chunk = 0; chunk < chunks; ++chunk) {
+            const long long p0 = chunk * chunkPixels;
+            const int count = int(std::min<long long>(chunkPixels, pixels - p0));
+            const float* sum = hiddenSum.data() + std::size_t(p0) * channels;
+            const std::size_t values = std::size_t(count) * channels;
+#pragma omp simd
+            for (std::size_t i = 0; i < values; ++i) mean[i] = sum[i] * inverseSpp;
+            const ConvSource meanSource{mean.data(), channels};
             convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count, Activation::None,
                         output.data() + std::size_t(p0) * outChannels());
         }
     }
-    return bad;
 }
 
 }  // namespace affinity

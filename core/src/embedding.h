@@ -28,7 +28,25 @@ public:
     long long apply(const float* samples, int height, int width, int spp, float depthScale,
                     FeatureMap& output) const;
 
+    // apply() in two steps, for samples that arrive in batches: accumulate() adds each sample's
+    // output of all layers but the last to `hiddenSum` (height x width x hiddenChannels(),
+    // started afresh when `first`), finish() applies the last layer to hiddenSum / spp. Batches
+    // added in sample order give apply()'s result bit for bit (the last layer is linear, so the
+    // mean can be taken before it). accumulate() returns the bad radiance count as apply().
+    long long accumulate(const float* samples, int height, int width, int spp, float depthScale,
+                         FeatureMap& hiddenSum, bool first) const;
+    void finish(const FeatureMap& hiddenSum, int spp, FeatureMap& output) const;
+    int hiddenChannels() const;
+
 private:
+    // Runs all layers but the last on the samples, chunk by chunk in parallel, and calls
+    // consume(firstPixel, pixelCount, hidden, scratch) per chunk with hidden = the chunk's
+    // per-sample outputs ([pixel][sample][hiddenChannels()]) and a per-thread scratch buffer of
+    // chunkPixels x max(hiddenChannels(), kFeatureCount) floats.
+    template <class Consume>
+    long long forEachChunk(const float* samples, long long pixels, int spp, float depthScale,
+                           Consume consume) const;
+
     std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples
     int widest_ = 0;                  // most outputs of any layer
 };

@@ -264,3 +264,96 @@ TEST(Denoiser, BuffersThatDoNotMatchTheFrameAreAnErrorNamingTheSize) {
     missing.width = 6, missing.height = 5, missing.spp = 2;
     EXPECT_THROW(denoiser.denoise(missing), Error);
 }
+
+namespace {
+
+// Samples [first, first + count) of every pixel: the buffer a streaming caller would pass.
+std::vector<float> sampleBatch(const SampleFrame& frame, int first, int count) {
+    std::vector<float> batch;
+    for (int y = 0; y < frame.height(); ++y)
+        for (int x = 0; x < frame.width(); ++x)
+            for (int s = first; s < first + count; ++s)
+                batch.insert(batch.end(), frame.sample(x, y, s), frame.sample(x, y, s) + kFeatureCount);
+    return batch;
+}
+
+std::vector<float> streamed(Denoiser& denoiser, const SampleFrame& frame, const std::vector<int>& batchSizes,
+                            DenoiseReport* report = nullptr) {
+    int first = 0;
+    for (int count : batchSizes) {
+        const std::vector<float> batch = sampleBatch(frame, first, count);
+        denoiser.addSamples(frame.width(), frame.height(), count, batch.data());
+        first += count;
+    }
+    EXPECT_EQ(denoiser.pendingSamples(), frame.spp());
+    return denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, report);
+}
+
+}  // namespace
+
+// Every sample of a pixel at sample 0's depth makes the first batch's depth normalisation the
+// whole frame's, and then streaming must be the same function bit for bit, whatever the batches.
+TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
+    auto frames = test::randomSequence(3, 17, 11, 4, 21);
+    for (SampleFrame& f : frames)
+        for (int y = 0; y < f.height(); ++y)
+            for (int x = 0; x < f.width(); ++x)
+                for (int s = 1; s < f.spp(); ++s) f.sample(x, y, s)[channel::kDepth] = f.sample(x, y, 0)[channel::kDepth];
+    const std::vector<std::vector<int>> batchings = {{1, 1, 2}, {1, 1, 1, 1}, {4}};
+    Denoiser whole(randomModel(3)), stream(randomModel(3));
+    for (std::size_t t = 0; t < frames.size(); ++t) {
+        DenoiseReport report;
+        const std::vector<float> expected = whole.denoise(frames[t]);
+        EXPECT_EQ(streamed(stream, frames[t], batchings[t], &report), expected) << "frame " << t;
+        EXPECT_EQ(stream.pendingSamples(), 0);
+        EXPECT_EQ(report.usedHistory, t > 0);
+        EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
+    }
+}
+
+TEST(DenoiserStreaming, OnlyTheDepthNormalisationDiffersWhenDepthsVary) {
+    auto frames = test::randomSequence(2, 12, 10, 4, 22);
+    Denoiser whole(randomModel(4)), stream(randomModel(4));
+    for (const SampleFrame& frame : frames) {
+        const std::vector<float> expected = whole.denoise(frame);
+        const std::vector<float> got = streamed(stream, frame, {1, 1, 1, 1});
+        // Depths 2-5 at random: sample 0's mean is within a few percent of all samples' mean.
+        EXPECT_LT(maxRelativeDifference(got, expected), 0.05);
+        EXPECT_NE(got, expected);
+    }
+}
+
+TEST(DenoiserStreaming, BadRadianceInALaterBatchIsCounted) {
+    auto frames = test::randomSequence(1, 8, 6, 2, 23);
+    frames[0].sample(3, 2, 1)[channel::kSpecular + 1] = std::nanf("");
+    frames[0].sample(0, 0, 1)[channel::kDiffuse] = -2.0f;
+    Denoiser denoiser(randomModel());
+    DenoiseReport report;
+    const std::vector<float> out = streamed(denoiser, frames[0], {1, 1}, &report);
+    EXPECT_TRUE(allFinite(out));
+    EXPECT_EQ(report.invalidRadiance, 2);
+}
+
+TEST(DenoiserStreaming, MisuseIsAnErrorAndDiscardingStartsOver) {
+    auto frames = test::randomSequence(1, 8, 6, 2, 24);
+    const SampleFrame& frame = frames[0];
+    Denoiser denoiser(randomModel()), fresh(randomModel());
+    EXPECT_THROW(denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info), Error);
+    const std::vector<float> batch = sampleBatch(frame, 0, 1);
+    EXPECT_THROW(denoiser.addSamples(8, 6, 0, batch.data()), Error);
+    EXPECT_THROW(denoiser.addSamples(8, 6, 1, nullptr), Error);
+    denoiser.addSamples(8, 6, 1, batch.data());
+    try {
+        denoiser.addSamples(6, 8, 1, batch.data());
+        FAIL() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("6x8 batch does not match the frame's first batch of 8x6"),
+                  std::string::npos)
+            << e.what();
+    }
+    EXPECT_THROW(denoiser.denoise(frame), Error);  // samples are waiting
+    EXPECT_EQ(denoiser.pendingSamples(), 1);
+    denoiser.discardSamples();
+    EXPECT_EQ(denoiser.pendingSamples(), 0);
+    EXPECT_EQ(denoiser.denoise(frame), fresh.denoise(frame));
+}

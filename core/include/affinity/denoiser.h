@@ -41,6 +41,21 @@ public:
     std::vector<float> denoise(const SampleFrame& frame, DenoiseReport* report = nullptr);
     // The same on buffers the caller owns (nothing is copied).
     std::vector<float> denoise(const SampleFrameView& frame, DenoiseReport* report = nullptr);
+    // Streaming input, for callers that make a frame's samples a few at a time (Blender renders
+    // one sample per sub-render), so that the per-sample features are never held whole:
+    // addSamples() for each batch of the frame's samples in order ([y][x][s][feature] with spp
+    // samples per pixel), then finishFrame() with the frame's motion ([y][x][2]), validity
+    // ([y][x]) and camera. Bit for bit what denoise() gives on the concatenated samples, except
+    // that the depth normalisation (docs/MODEL.md section 1) comes from the first batch alone.
+    // reset() does not touch samples added so far; discardSamples() drops them (as after a
+    // cancelled render). Throws affinity::Error on an empty batch, a batch of another size than
+    // the frame's first, finishFrame() without samples, or denoise() while samples wait.
+    void addSamples(int width, int height, int spp, const float* samples);
+    std::vector<float> finishFrame(const float* motion, const float* valid, const FrameInfo& info,
+                                   DenoiseReport* report = nullptr);
+    void discardSamples();
+    int pendingSamples() const;  // samples added since the last finishFrame()
+
     void reset();
 
     const Model& model() const;
