@@ -4,6 +4,10 @@
 // (input frame included). One model per process, so that peak memory is that model's.
 //
 //   bench_denoiser [--model FILE.affw] [--size 1920x1080] [--spp 4] [--frames 6] [--threads N]
+//                  [--stream 1]
+//
+// --stream 1 feeds each frame one sample at a time (Denoiser::addSamples, as the Blender
+// extension does), so only one sample's features are held: the input is then 1/spp the size.
 //
 // Prints one JSON object. Content of the frame does not matter for speed: plausible random
 // features with a small motion everywhere.
@@ -29,6 +33,7 @@ namespace {
 struct Options {
     std::string model;  // empty: the built-in model
     int width = 1920, height = 1080, spp = 4, frames = 6, threads = 0;
+    bool stream = false;
 };
 
 Options parse(int argc, char** argv) {
@@ -48,6 +53,8 @@ Options parse(int argc, char** argv) {
             options.frames = std::max(2, std::stoi(value));
         else if (flag == "--threads")
             options.threads = std::stoi(value);
+        else if (flag == "--stream")
+            options.stream = value == "1";
         else
             throw Error("bench_denoiser: unknown option " + flag);
     }
@@ -94,7 +101,8 @@ double median(std::vector<double> values) {
 int run(const Options& options) {
     if (options.threads > 0) omp_set_num_threads(options.threads);
     Model model = options.model.empty() ? Model::builtIn() : Model::fromFile(options.model);
-    const SampleFrame frame = randomFrame(options.width, options.height, options.spp, 1);
+    // Streaming holds one sample and feeds it spp times (the values do not matter for speed).
+    const SampleFrame frame = randomFrame(options.width, options.height, options.stream ? 1 : options.spp, 1);
     Denoiser denoiser(model);
     std::vector<double> wall, cpu;
     std::map<std::string, std::vector<double>> stages;
@@ -103,7 +111,14 @@ int run(const Options& options) {
         DenoiseReport report;
         const double cpuStart = cpuSeconds();
         const auto start = std::chrono::steady_clock::now();
-        const std::vector<float> output = denoiser.denoise(frame, &report);
+        std::vector<float> output;
+        if (options.stream) {
+            for (int s = 0; s < options.spp; ++s)
+                denoiser.addSamples(frame.width(), frame.height(), 1, frame.samples().data());
+            output = denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, &report);
+        } else {
+            output = denoiser.denoise(frame, &report);
+        }
         const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
         if (i == 0) continue;  // no history yet: not the steady state
         wall.push_back(ms);
@@ -119,12 +134,12 @@ int run(const Options& options) {
     std::printf("{\"model\": \"%s\", \"parameters\": %lld, \"kflop_per_pixel\": %.1f, \"size\": \"%dx%d\", "
                 "\"spp\": %d, \"threads\": %d, \"timed_frames\": %zu, \"ms_per_frame\": %.1f, "
                 "\"ms_per_megapixel\": %.1f, \"cpu_seconds_per_frame\": %.3f, \"gflops_per_cpu_second\": %.1f, "
-                "\"peak_rss_mb\": %.0f, \"input_frame_mb\": %.0f, \"stage_ms\": {",
+                "\"peak_rss_mb\": %.0f, \"input_frame_mb\": %.0f, \"streamed\": %s, \"stage_ms\": {",
                 model.source().c_str(), static_cast<long long>(model.parameterCount()),
                 model.flopsPerPixel(options.spp) / 1000.0, options.width, options.height, options.spp,
                 omp_get_max_threads(), wall.size(), median(wall), median(wall) / (pixels / 1e6), median(cpu),
                 model.flopsPerPixel(options.spp) * pixels / median(cpu) / 1e9, double(usage.ru_maxrss) / 1024.0,
-                double(frame.samples().size() * sizeof(float)) / (1024.0 * 1024.0));
+                double(frame.samples().size() * sizeof(float)) / (1024.0 * 1024.0), options.stream ? "true" : "false");
     for (std::size_t i = 0; i < stageOrder.size(); ++i)
         std::printf("%s\"%s\": %.1f", i ? ", " : "", stageOrder[i].c_str(), median(stages[stageOrder[i]]));
     std::printf("}}\n");

@@ -9,6 +9,8 @@ void FeatureMap::resize(int height, int width, int channels) {
     width_ = width;
     channels_ = channels;
     if (size() > capacity_) {
+        data_.reset();  // first: the old and the new buffer are never held together
+        capacity_ = 0;
         data_.reset(static_cast<float*>(::operator new[](size() * sizeof(float), std::align_val_t(64))));
         capacity_ = size();
     }
