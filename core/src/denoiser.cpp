@@ -410,7 +410,10 @@ void Denoiser::discardSamples() {
     state_->pool.give(state_->pending.hiddenSum);
 }
 
-int Denoiser::pendingSamples() const { return state_->pending.spp; }
+Denoiser::PendingFrame Denoiser::pending() const {
+    const State::Pending& p = state_->pending;
+    return p.spp > 0 ? PendingFrame{p.width, p.height, p.spp} : PendingFrame{};
+}
 
 std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float depthScale, const FrameInfo& info,
                                                     const float* motion, const float* valid, DenoiseReport& local,

@@ -149,5 +149,32 @@ class Denoiser:
         output, self.last_report = self._native.denoise(frame)
         return output
 
+    # Streaming: a frame's samples in batches, so that they are never held together (Blender
+    # renders one sample per sub-render). The result is bit for bit ``denoise`` on the whole
+    # frame, except that the depth normalisation comes from the first batch alone.
+
+    def add_samples(self, samples: Any) -> None:
+        """Adds float32 (H, W, S, 18) samples, or (H, W, 18) for one, to the frame being built.
+
+        Batches must come in sample order and share H and W. The array is read during the
+        call only (the GIL is released).
+        """
+        self._native.add_samples(samples)
+
+    def finish_frame(self, frame: dict[str, Any]) -> Any:
+        """Denoises the frame built by ``add_samples``; ``frame`` is a frame dict without
+        "samples" (motion, valid, info). Returns float32 (H, W, 3) like ``denoise``."""
+        output, self.last_report = self._native.finish_frame(frame)
+        return output
+
+    def discard_samples(self) -> None:
+        """Drops the samples added since the last ``finish_frame`` (after a cancelled render)."""
+        self._native.discard_samples()
+
+    @property
+    def pending_samples(self) -> int:
+        """Samples per pixel added since the last ``finish_frame``."""
+        return self._native.pending_samples
+
     def reset(self) -> None:
         self._native.reset()

@@ -260,6 +260,18 @@ SampleFrame frameFromDict(const py::dict& dict) {
 
 namespace {
 
+// What Denoiser.last_report holds (see python_bindings/affinity/__init__.py).
+py::dict reportDict(const DenoiseReport& report) {
+    py::dict info;
+    info["invalid_radiance"] = report.invalidRadiance;
+    info["used_history"] = report.usedHistory;
+    info["reset_reason"] = report.resetReason;
+    py::dict stages;
+    for (const auto& [stage, ms] : report.stageMilliseconds) stages[py::str(stage)] = ms;
+    info["stage_ms"] = stages;
+    return info;
+}
+
 ExrCompression compressionFromName(const std::string& name) {
     if (name == "none") return ExrCompression::None;
     if (name == "zip") return ExrCompression::Zip;
@@ -346,16 +358,59 @@ PYBIND11_MODULE(_core, m) {
                     py::gil_scoped_release release;
                     rgb = self.denoise(arrays.view, &report);
                 }
-                py::dict info;
-                info["invalid_radiance"] = report.invalidRadiance;
-                info["used_history"] = report.usedHistory;
-                info["reset_reason"] = report.resetReason;
-                py::dict stages;
-                for (const auto& [stage, ms] : report.stageMilliseconds) stages[py::str(stage)] = ms;
-                info["stage_ms"] = stages;
-                return py::make_tuple(arrayOwning(std::move(rgb), {arrays.view.height, arrays.view.width, 3}), info);
+                return py::make_tuple(arrayOwning(std::move(rgb), {arrays.view.height, arrays.view.width, 3}),
+                                      reportDict(report));
             },
             py::arg("frame"))
+        .def(
+            "add_samples",
+            [](Denoiser& self, const py::handle& value) {
+                // (H, W, S, 18), or (H, W, 18) for one sample; read in place during the call.
+                const bool single =
+                    py::isinstance<py::array>(value) && py::reinterpret_borrow<py::array>(value).ndim() == 3;
+                const auto samples = single ? floatArray(value, "samples", {-1, -1, kFeatureCount}, "(H, W, 18)")
+                                            : floatArray(value, "samples", {-1, -1, -1, kFeatureCount},
+                                                         "(H, W, S, 18) or (H, W, 18)");
+                const py::ssize_t h = samples.shape(0), w = samples.shape(1), spp = single ? 1 : samples.shape(2);
+                if (h < 1 || w < 1 || spp < 1 || h > 1 << 30 || w > 1 << 30 || spp > SampleFrame::kMaxSpp)
+                    throw py::value_error("samples has shape " + shapeText(samples) +
+                                          ", expected H, W >= 1 and S in 1.." + std::to_string(SampleFrame::kMaxSpp));
+                const Denoiser::PendingFrame pending = self.pending();
+                if (pending.spp > 0 && (pending.width != w || pending.height != h))
+                    throw py::value_error("samples has shape " + shapeText(samples) + " but the frame's first batch was " +
+                                          std::to_string(pending.height) + "x" + std::to_string(pending.width));
+                if (pending.spp + spp > SampleFrame::kMaxSpp)
+                    throw py::value_error("a frame holds at most " + std::to_string(SampleFrame::kMaxSpp) +
+                                          " samples per pixel; " + std::to_string(pending.spp) + " were added");
+                py::gil_scoped_release release;
+                self.addSamples(int(w), int(h), int(spp), samples.data());
+            },
+            py::arg("samples"))
+        .def(
+            "finish_frame",
+            [](Denoiser& self, const py::dict& frame) {
+                const Denoiser::PendingFrame pending = self.pending();
+                if (pending.spp == 0) throw py::value_error("finish_frame: no samples were added with add_samples()");
+                const std::string what = "frame";
+                checkKeys(frame, what, {"motion", "valid", "reference", "info"});
+                const std::string hw = std::to_string(pending.height) + ", " + std::to_string(pending.width);
+                const auto motion = floatArray(requireKey(frame, what, "motion"), "frame['motion']",
+                                               {pending.height, pending.width, 2}, "(" + hw + ", 2)");
+                const auto valid = floatArray(requireKey(frame, what, "valid"), "frame['valid']",
+                                              {pending.height, pending.width}, "(" + hw + ")");
+                const FrameInfo info = infoFromDict(requireKey(frame, what, "info"));
+                DenoiseReport report;
+                std::vector<float> rgb;
+                {
+                    py::gil_scoped_release release;
+                    rgb = self.finishFrame(motion.data(), valid.data(), info, &report);
+                }
+                return py::make_tuple(arrayOwning(std::move(rgb), {pending.height, pending.width, 3}),
+                                      reportDict(report));
+            },
+            py::arg("frame"))
+        .def("discard_samples", &Denoiser::discardSamples)
+        .def_property_readonly("pending_samples", [](const Denoiser& self) { return self.pending().spp; })
         .def("reset", &Denoiser::reset)
         .def_property_readonly("model", &Denoiser::model);
 }

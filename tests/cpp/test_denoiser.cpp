@@ -285,7 +285,7 @@ std::vector<float> streamed(Denoiser& denoiser, const SampleFrame& frame, const 
         denoiser.addSamples(frame.width(), frame.height(), count, batch.data());
         first += count;
     }
-    EXPECT_EQ(denoiser.pendingSamples(), frame.spp());
+    EXPECT_EQ(denoiser.pending().spp, frame.spp());
     return denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, report);
 }
 
@@ -305,7 +305,7 @@ TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
         DenoiseReport report;
         const std::vector<float> expected = whole.denoise(frames[t]);
         EXPECT_EQ(streamed(stream, frames[t], batchings[t], &report), expected) << "frame " << t;
-        EXPECT_EQ(stream.pendingSamples(), 0);
+        EXPECT_EQ(stream.pending().spp, 0);
         EXPECT_EQ(report.usedHistory, t > 0);
         EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
     }
@@ -352,8 +352,10 @@ TEST(DenoiserStreaming, MisuseIsAnErrorAndDiscardingStartsOver) {
             << e.what();
     }
     EXPECT_THROW(denoiser.denoise(frame), Error);  // samples are waiting
-    EXPECT_EQ(denoiser.pendingSamples(), 1);
+    EXPECT_EQ(denoiser.pending().spp, 1);
+    EXPECT_EQ(denoiser.pending().width, 8);
+    EXPECT_EQ(denoiser.pending().height, 6);
     denoiser.discardSamples();
-    EXPECT_EQ(denoiser.pendingSamples(), 0);
+    EXPECT_EQ(denoiser.pending().spp, 0);
     EXPECT_EQ(denoiser.denoise(frame), fresh.denoise(frame));
 }

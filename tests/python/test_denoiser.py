@@ -100,3 +100,56 @@ def test_any_array_layout_gives_the_same_output(sequence: list[dict]) -> None:
     strided["valid"] = np.ascontiguousarray(frame["valid"], dtype=np.float64).astype(np.float32)
     np.testing.assert_array_equal(affinity.Denoiser().denoise(strided), affinity.Denoiser().denoise(frame))
     assert frame["samples"].flags["C_CONTIGUOUS"]  # the input was not touched
+
+
+def _with_sample0_depth(frame: dict) -> dict:
+    """Every sample at sample 0's depth: the first batch's depth normalisation is the frame's."""
+    samples = frame["samples"].copy()
+    samples[..., 9] = samples[:, :, :1, 9]
+    return {**frame, "samples": samples}
+
+
+def test_streamed_samples_equal_the_whole_frame(sequence: list[dict]) -> None:
+    frames = [_with_sample0_depth(f) for f in sequence]
+    whole, stream = affinity.Denoiser(), affinity.Denoiser()
+    for frame in frames:
+        expected = whole.denoise(frame)
+        spp = frame["samples"].shape[2]
+        for s in range(spp):
+            stream.add_samples(frame["samples"][:, :, s])  # (H, W, 18), a strided view
+        assert stream.pending_samples == spp
+        got = stream.finish_frame({k: v for k, v in frame.items() if k != "samples"})
+        np.testing.assert_array_equal(got, expected)
+        assert stream.pending_samples == 0
+        assert stream.last_report["used_history"] == whole.last_report["used_history"]
+
+
+def test_streamed_depth_normalisation_comes_from_the_first_batch(sequence: list[dict]) -> None:
+    frame = sequence[0]
+    expected = affinity.Denoiser().denoise(frame)
+    stream = affinity.Denoiser()
+    stream.add_samples(frame["samples"][:, :, :1])
+    stream.add_samples(frame["samples"][:, :, 1:])
+    got = stream.finish_frame({k: v for k, v in frame.items() if k != "samples"})
+    assert not np.array_equal(got, expected)  # the renderer's depths vary within a pixel
+    assert np.abs(got - expected).max() <= 0.02 * np.abs(expected).max()
+
+
+def test_streaming_misuse_names_the_problem(sequence: list[dict]) -> None:
+    frame = sequence[0]
+    rest = {k: v for k, v in frame.items() if k != "samples"}
+    denoiser = affinity.Denoiser()
+    with pytest.raises(ValueError, match="no samples were added"):
+        denoiser.finish_frame(rest)
+    denoiser.add_samples(frame["samples"])
+    with pytest.raises(ValueError, match="first batch was 30x40"):
+        denoiser.add_samples(np.zeros((20, 40, 18), np.float32))
+    with pytest.raises(ValueError, match="samples has shape"):
+        denoiser.add_samples(np.zeros((30, 40, 17), np.float32))
+    with pytest.raises(ValueError, match=r"frame\['motion'\] has shape"):
+        denoiser.finish_frame({**rest, "motion": np.zeros((30, 41, 2), np.float32)})
+    with pytest.raises(affinity.Error, match="wait for finishFrame"):
+        denoiser.denoise(frame)
+    denoiser.discard_samples()
+    assert denoiser.pending_samples == 0
+    np.testing.assert_array_equal(denoiser.denoise(frame), affinity.Denoiser().denoise(frame))

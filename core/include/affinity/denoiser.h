@@ -54,7 +54,12 @@ public:
     std::vector<float> finishFrame(const float* motion, const float* valid, const FrameInfo& info,
                                    DenoiseReport* report = nullptr);
     void discardSamples();
-    int pendingSamples() const;  // samples added since the last finishFrame()
+    // The frame being streamed: its size, and the samples added since the last finishFrame()
+    // (0 when none).
+    struct PendingFrame {
+        int width = 0, height = 0, spp = 0;
+    };
+    PendingFrame pending() const;
 
     void reset();
 
