@@ -93,7 +93,7 @@ def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndar
 
 
 def frame_dict(
-    samples: np.ndarray,
+    samples: np.ndarray | None,
     motion: np.ndarray,
     valid: np.ndarray,
     camera: Camera,
@@ -101,9 +101,10 @@ def frame_dict(
     frame_index: int,
     seed: int,
 ) -> dict[str, Any]:
-    """A frame in the layout of affinity.read_frame / write_frame (docs/FRAME_FILES.md)."""
+    """A frame in the layout of affinity.read_frame / write_frame (docs/FRAME_FILES.md);
+    samples None when they were streamed to the denoiser instead."""
     return {
-        "samples": np.ascontiguousarray(samples, dtype=np.float32),
+        "samples": None if samples is None else np.ascontiguousarray(samples, dtype=np.float32),
         "motion": np.ascontiguousarray(motion, dtype=np.float32),
         "valid": np.ascontiguousarray(valid, dtype=np.float32),
         "reference": None,

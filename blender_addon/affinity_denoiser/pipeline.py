@@ -210,8 +210,17 @@ class DenoiseRender:
             transforms = motion.object_transforms(depsgraph)
             self.timings.motion.append(time.perf_counter() - start)
             ray_start = motion.ray_start_distance(camera)
-            samples = np.empty((camera.height, camera.width, spp, features.FEATURE_COUNT),
-                               np.float32)
+            # Streaming hands each sample to the core as it is rendered, so the frame's
+            # per-sample features are never held together (at 4K, 8 spp: 4.8 GB); the whole
+            # frame is kept only where it is written out or asked for.
+            stream = hasattr(denoiser, "add_samples") and not (
+                self.settings.keep_sample_frames or self.keep_frames)
+            if stream and denoiser.pending_samples:
+                denoiser.discard_samples()  # left by an interrupted frame
+            samples = None if stream else np.empty(
+                (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
+            radiance = np.zeros((camera.height, camera.width, 3), np.float32)
+            streaming_seconds = 0.0  # the denoiser's share of the sample loop
             sums: dict[str, np.ndarray] = {}
             geometry = None
             for sample in range(spp):
@@ -222,9 +231,17 @@ class DenoiseRender:
                 start = time.perf_counter()
                 if names is None:
                     names = passes.resolve(captured)
-                samples[:, :, sample] = features.sample_features(
+                sample_features = features.sample_features(
                     passes.by_role(captured, names), camera, ray_start)
+                radiance += sample_features[..., 0:3]
+                radiance += sample_features[..., 3:6]
                 self.timings.features.append(time.perf_counter() - start)
+                if samples is None:
+                    start = time.perf_counter()
+                    denoiser.add_samples(sample_features)
+                    streaming_seconds += time.perf_counter() - start
+                else:
+                    samples[:, :, sample] = sample_features
                 if sample == 0:  # Cycles writes Z for the sample at offset 0 only
                     geometry = self._geometry(captured, names, camera, transforms)
                 for name, image in captured.items():
@@ -242,7 +259,8 @@ class DenoiseRender:
             frame_data = features.frame_dict(samples, motion_vectors, valid, camera,
                                              scene.name, frame, scene.cycles.seed)
             mean = {name: total / np.float32(spp) for name, total in sums.items()}
-            self._finish_frame(denoiser, frame, frame_data, mean, overrides, use_compositing)
+            self._finish_frame(denoiser, frame, frame_data, radiance / np.float32(spp), mean,
+                               overrides, use_compositing, streaming_seconds)
 
     @staticmethod
     def _geometry(captured: dict[str, np.ndarray], names: dict[str, str], camera: motion.Camera,
@@ -282,17 +300,21 @@ class DenoiseRender:
         return captured[0]
 
     def _finish_frame(self, denoiser: Any, frame: int, frame_data: dict[str, Any],
-                      mean: dict[str, np.ndarray], overrides: Overrides,
-                      use_compositing: bool) -> None:
+                      noisy: np.ndarray, mean: dict[str, np.ndarray], overrides: Overrides,
+                      use_compositing: bool, streaming_seconds: float) -> None:
+        """Denoises the frame (its samples are in frame_data, or were streamed to the
+        denoiser when frame_data has none) and writes and presents the result."""
         import bpy
 
-        samples = frame_data["samples"]
-        noisy = (samples[..., 0:3] + samples[..., 3:6]).mean(axis=2)
         if not self.settings.temporal:
             denoiser.reset()
         start = time.perf_counter()
-        denoised = np.asarray(denoiser.denoise(frame_data), dtype=np.float32)
-        self.timings.denoise.append(time.perf_counter() - start)
+        if frame_data["samples"] is None:
+            rest = {key: value for key, value in frame_data.items() if key != "samples"}
+            denoised = np.asarray(denoiser.finish_frame(rest), dtype=np.float32)
+        else:
+            denoised = np.asarray(denoiser.denoise(frame_data), dtype=np.float32)
+        self.timings.denoise.append(streaming_seconds + time.perf_counter() - start)
         if denoised.shape != noisy.shape:
             raise RuntimeError(f"the denoiser returned shape {denoised.shape}, "
                                f"expected {noisy.shape}")

@@ -230,3 +230,30 @@ def test_sample_frames_round_trip_through_the_core(run: dict[str, Any], tmp_path
     np.testing.assert_array_equal(back["samples"], frame["samples"])
     np.testing.assert_array_equal(back["motion"], frame["motion"])
     assert back["info"]["frame_index"] == 2
+
+
+def test_streamed_samples_give_what_the_core_gives_on_the_kept_frames(run: dict[str, Any],
+                                                                     tmp_path: Any) -> None:
+    """Without keep_frames the job streams every sub-render's features to the core
+    (add_samples / finish_frame) instead of holding the frame: same renders, same result as
+    streaming the kept frames ourselves, and the noisy mean of the whole-frame path."""
+    from conftest import CORE_AVAILABLE
+    if not CORE_AVAILABLE:
+        pytest.skip("the affinity core is not importable")
+    import affinity
+
+    scene = bpy.context.scene
+    scene.render.filepath = str(tmp_path / "render" / "frame_")
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings())
+    job.run()
+    by_hand = affinity.Denoiser()
+    for kept, streamed in zip(run["job"].results, job.results, strict=True):
+        assert streamed.frame_data is None
+        samples = kept.frame_data["samples"]
+        for s in range(samples.shape[2]):
+            by_hand.add_samples(samples[:, :, s])
+        expected = by_hand.finish_frame({k: v for k, v in kept.frame_data.items() if k != "samples"})
+        np.testing.assert_array_equal(streamed.denoised, expected)
+        np.testing.assert_allclose(streamed.noisy, kept.noisy, rtol=1e-5, atol=1e-7)
+        # Only the depth normalisation separates it from denoising the whole frame.
+        assert np.abs(streamed.denoised - kept.denoised).max() <= 0.02 * np.abs(kept.denoised).max()
