@@ -17,16 +17,19 @@ json_out=${BENCH_JSON:-}
 # Idle OpenMP workers sleep instead of spinning, so that back-to-back runs do not slow each other.
 export OMP_WAIT_POLICY=passive
 
-models=("tiny=$root/core/models/tiny.affw" "small=")
+# "<label>=<model file>[=stream]": stream feeds the frame one sample at a time
+# (Denoiser::addSamples, as the Blender extension does), so one sample's features are held.
+models=("tiny=$root/core/models/tiny.affw" "small=" "tiny streamed=$root/core/models/tiny.affw=stream"
+        "small streamed==stream")
 if [ -x "$build/training/affinity_model_tool" ]; then
   "$build/training/affinity_model_tool" init --preset paper --seed 1 --out "$work/paper.affw" >/dev/null
   models+=("paper=$work/paper.affw")
 fi
 for entry in "${models[@]}"; do
-  label=${entry%%=*}
-  file=${entry#*=}
+  IFS='=' read -r label file mode <<<"$entry"
   args=(--size "$size" --spp "$spp" --frames 4)
   [ -n "$file" ] && args+=(--model "$file")
+  [ "$mode" = stream ] && args+=(--stream 1)
   echo "{\"label\": \"$label\", \"result\": $("$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"
 done
 [ -n "$json_out" ] && cp "$work/results.jsonl" "$json_out"
@@ -55,9 +58,10 @@ oidn_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
 rows = [json.loads(line) for line in open(results)]
 stages = list(rows[0]["result"]["stage_ms"])
 print(f"Denoiser speed at {size}, {spp} spp, 2 threads; OpenImageDenoise (pyoidn, colour + albedo + normal, "
-      f"quality high) measured in the same run. Peak memory includes the {rows[0]['result']['input_frame_mb']:.0f} MB "
-      "input frame (per-sample features).\n")
-print("| model | parameters | kFLOP/px | ms/frame | OIDN ms / ours | peak memory MB | " + " | ".join(stages) + " |")
+      f"quality high) measured in the same run. Peak memory (MiB) includes the input: the "
+      f"{rows[0]['result']['input_frame_mb']:.0f} MiB frame of per-sample features, or one sample's "
+      "features for the streamed rows.\n")
+print("| model | parameters | kFLOP/px | ms/frame | OIDN ms / ours | peak memory MiB | " + " | ".join(stages) + " |")
 print("|---|---|---|---|---|---|" + "---|" * len(stages))
 for row in rows:
     r = row["result"]
