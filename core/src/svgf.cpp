@@ -73,13 +73,10 @@ struct Layout {
     bool operator==(const Layout&) const = default;
 };
 
-// Number of floats per channel of a frame's per-sample buffers, or why they do not fit.
-void checkFrame(const SampleFrame& frame) {
-    if (frame.width() < 1 || frame.height() < 1 || frame.spp() < 1) throw Error("svgf: the frame is empty");
-    if (frame.samples().size() != frame.pixelCount() * std::size_t(frame.spp()) * kFeatureCount ||
-        frame.motion().size() != frame.pixelCount() * 2 || frame.valid().size() != frame.pixelCount())
-        throw Error("svgf: the frame's buffers do not match its size " + std::to_string(frame.width()) + "x" +
-                    std::to_string(frame.height()) + " at " + std::to_string(frame.spp()) + " spp");
+// Why a frame's buffers cannot be filtered, if they cannot.
+void checkFrame(const SampleFrameView& frame) {
+    if (frame.width < 1 || frame.height < 1 || frame.spp < 1) throw Error("svgf: the frame is empty");
+    if (!frame.samples || !frame.motion || !frame.valid) throw Error("svgf: the frame lacks a buffer");
 }
 
 void checkSettings(const SvgfSettings& s) {
@@ -164,9 +161,9 @@ struct Svgf::State {
     explicit State(const SvgfSettings& s) : settings(s), normalWeight(s.sigmaNormal) {}
 
     void allocate(int width, int height);
-    void prepareGuides(const SampleFrame& frame);
+    void prepareGuides(const SampleFrameView& frame);
     void computeDepthGradients();
-    void reprojectAndAccumulate(const SampleFrame& frame, bool useHistory);
+    void reprojectAndAccumulate(const SampleFrameView& frame, bool useHistory);
     void estimateSpatialVariance();
     void prefilterVariance(const std::vector<float>& varianceIn);
     void atrousPass(int step, int from, int to);
@@ -271,8 +268,8 @@ std::vector<float> Svgf::historyLength() const {
 // coverage is demodulated too); over the other samples, the mean of the finite positive
 // depths and the normalised mean normal, or the miss marker where there are none (the sky,
 // lamps: nothing to filter there).
-void Svgf::State::prepareGuides(const SampleFrame& frame) {
-    const int width = frame.width(), height = frame.height(), spp = frame.spp();
+void Svgf::State::prepareGuides(const SampleFrameView& frame) {
+    const int width = frame.width, height = frame.height, spp = frame.spp;
     const float inverseSpp = 1.0f / float(spp);
     const float epsilon = settings.albedoEpsilon;
 #pragma omp parallel for schedule(static)
@@ -358,7 +355,7 @@ void Svgf::State::computeDepthGradients() {
 // Reads colour[0] (this frame's illumination), the guides and the previous frame's buffers;
 // writes colour[0] (integrated illumination), moments[0..1] (integrated luminance moments),
 // history (frames accumulated) and variance[0] (temporal luminance variance).
-void Svgf::State::reprojectAndAccumulate(const SampleFrame& frame, bool useHistory) {
+void Svgf::State::reprojectAndAccumulate(const SampleFrameView& frame, bool useHistory) {
     const int width = layout.width, height = layout.height;
     const float cap = float(settings.historyCap);
     const float* past = previousFrame.data();
@@ -374,10 +371,11 @@ void Svgf::State::reprojectAndAccumulate(const SampleFrame& frame, bool useHisto
             float m[2] = {l, l * l};
 
             float sumWeight = 0.0f, sumHistory = 0.0f, sumColour[3] = {0, 0, 0}, sumMoments[2] = {0, 0};
-            const float* motion = frame.motion(x, y);
+            const std::size_t pixel = std::size_t(y) * std::size_t(width) + std::size_t(x);
+            const float* motion = frame.motion + 2 * pixel;
             // The previous frame's pixel centres are at integer + 0.5, as ours.
             const float px = float(x) + motion[0], py = float(y) + motion[1];
-            if (useHistory && frame.valid(x, y) >= 0.5f && px > -1.0f && px < float(width) && py > -1.0f &&
+            if (useHistory && frame.valid[pixel] >= 0.5f && px > -1.0f && px < float(width) && py > -1.0f &&
                 py < float(height)) {
                 const int x0 = int(std::floor(px)), y0 = int(std::floor(py));
                 const float fx = px - float(x0), fy = py - float(y0);
@@ -570,10 +568,21 @@ void Svgf::State::keepHistory() {
 }
 
 std::vector<float> Svgf::denoise(const SampleFrame& frame) {
+    if (frame.width() < 1 || frame.height() < 1 || frame.spp() < 1) throw Error("svgf: the frame is empty");
+    SampleFrameView view;
+    try {
+        view = frame.view();
+    } catch (const Error& e) {
+        throw Error(std::string("svgf: ") + e.what());
+    }
+    return denoise(view);
+}
+
+std::vector<float> Svgf::denoise(const SampleFrameView& frame) {
     checkFrame(frame);
     State& s = *state_;
-    if (s.layout.width != frame.width() || s.layout.height != frame.height()) s.hasHistory = false;
-    s.allocate(frame.width(), frame.height());
+    if (s.layout.width != frame.width || s.layout.height != frame.height) s.hasHistory = false;
+    s.allocate(frame.width, frame.height);
 
     // Samples -> illumination in colour[0], demodulation factors, depth, normals.
     s.prepareGuides(frame);

@@ -35,7 +35,7 @@ using FloatArray = py::array_t<float, py::array::c_style>;
 
 // --- frame -> Python ------------------------------------------------------------------------
 
-// Declared in frame_convert.h, as frameFromDict below.
+// Declared in frame_convert.h, as frameArraysFromDict below.
 py::array_t<float> arrayOwning(std::vector<float>&& values, std::vector<py::ssize_t> shape) {
     auto owner = std::make_unique<std::vector<float>>(std::move(values));
     float* data = owner->data();
@@ -246,6 +246,9 @@ FrameArrays frameArraysFromDict(const py::dict& dict) {
     return arrays;
 }
 
+namespace {
+
+// A frame dict as a SampleFrame (a copy, for writing it); raises as frameArraysFromDict.
 SampleFrame frameFromDict(const py::dict& dict) {
     const FrameArrays arrays = frameArraysFromDict(dict);
     const SampleFrameView& view = arrays.view;
@@ -257,8 +260,6 @@ SampleFrame frameFromDict(const py::dict& dict) {
     frame.info = view.info;
     return frame;
 }
-
-namespace {
 
 // What Denoiser.last_report holds (see python_bindings/affinity/__init__.py).
 py::dict reportDict(const DenoiseReport& report) {

@@ -22,7 +22,4 @@ struct FrameArrays {
 // Raises TypeError / ValueError / KeyError naming the bad key.
 FrameArrays frameArraysFromDict(const pybind11::dict& dict);
 
-// A frame dict as a SampleFrame (a copy); raises as frameArraysFromDict.
-SampleFrame frameFromDict(const pybind11::dict& dict);
-
 }  // namespace affinity

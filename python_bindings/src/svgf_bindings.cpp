@@ -65,13 +65,14 @@ void bindSvgf(py::module_& m) {
         .def(
             "denoise",
             [](Svgf& self, const py::dict& frame) {
-                const SampleFrame native = frameFromDict(frame);
+                // Read in place (kept alive by `arrays`), as Denoiser.denoise does.
+                const FrameArrays arrays = frameArraysFromDict(frame);
                 std::vector<float> rgb;
                 {
                     py::gil_scoped_release release;
-                    rgb = self.denoise(native);
+                    rgb = self.denoise(arrays.view);
                 }
-                return arrayOwning(std::move(rgb), {native.height(), native.width(), 3});
+                return arrayOwning(std::move(rgb), {arrays.view.height, arrays.view.width, 3});
             },
             py::arg("frame"),
             "Filters the next frame (a frame dict); returns float32 (H, W, 3) linear radiance. NaN, Inf\n"

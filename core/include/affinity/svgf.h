@@ -57,6 +57,8 @@ public:
     // normal tests) start a new history. Throws affinity::Error for an empty or inconsistent
     // frame.
     std::vector<float> denoise(const SampleFrame& frame);
+    // The same on buffers the caller owns (nothing is copied).
+    std::vector<float> denoise(const SampleFrameView& frame);
     void reset();
 
     const SvgfSettings& settings() const;
