@@ -16,39 +16,34 @@ namespace {
 
 float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
 
-// 1 / mean depth of the samples that hit something (docs/MODEL.md section 1).
+// 1 / mean depth of the samples that hit something (docs/MODEL.md section 1). Rows are summed
+// in parallel and their sums added in row order, so the result does not depend on the threads.
 float depthScale(const SampleFrameView& frame) {
-    double sum = 0.0;
-    long long count = 0;
-    const std::size_t values = frame.pixelCount() * std::size_t(frame.spp) * kFeatureCount;
-    for (std::size_t i = channel::kDepth; i < values; i += kFeatureCount) {
-        float depth = frame.samples[i];
-        if (std::isfinite(depth) && depth > 0.0f) {
-            sum += depth;
-            ++count;
-        }
-    }
-    return count > 0 ? float(double(count) / sum) : 0.0f;
-}
-
-// Adds each pixel's sample radiance, non-finite and negative values read as 0, to `sum`
-// (started at 0 when `first`): the noisy radiance before dividing by the sample count.
-void addRadiance(const SampleFrameView& frame, FeatureMap& sum, bool first) {
-    if (first) sum.resize(frame.height, frame.width, 3);
+    std::vector<double> rowSums(std::size_t(frame.height), 0.0);
+    std::vector<long long> rowCounts(std::size_t(frame.height), 0);
+    const std::size_t rowValues = std::size_t(frame.width) * std::size_t(frame.spp) * kFeatureCount;
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < frame.height; ++y) {
-        for (int x = 0; x < frame.width; ++x) {
-            float* o = sum.pixel(y, x);
-            if (first) o[0] = o[1] = o[2] = 0.0f;
-            for (int s = 0; s < frame.spp; ++s) {
-                const float* f = frame.sample(x, y, s);
-                for (int c = 0; c < 3; ++c) {
-                    float d = f[channel::kDiffuse + c], sp = f[channel::kSpecular + c];
-                    o[c] += (std::isfinite(d) && d > 0.0f ? d : 0.0f) + (std::isfinite(sp) && sp > 0.0f ? sp : 0.0f);
-                }
+        const float* row = frame.samples + std::size_t(y) * rowValues;
+        double sum = 0.0;
+        long long count = 0;
+        for (std::size_t i = channel::kDepth; i < rowValues; i += kFeatureCount) {
+            const float depth = row[i];
+            if (std::isfinite(depth) && depth > 0.0f) {
+                sum += depth;
+                ++count;
             }
         }
+        rowSums[std::size_t(y)] = sum;
+        rowCounts[std::size_t(y)] = count;
     }
+    double sum = 0.0;
+    long long count = 0;
+    for (int y = 0; y < frame.height; ++y) {
+        sum += rowSums[std::size_t(y)];
+        count += rowCounts[std::size_t(y)];
+    }
+    return count > 0 ? float(double(count) / sum) : 0.0f;
 }
 
 void scale(FeatureMap& map, float factor) {
@@ -344,8 +339,8 @@ std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport
     // 1-2. Per-sample embedding averaged per pixel; noisy radiance.
     const float depth = depthScale(frame);
     FeatureMap embedding = s.pool.take(height, width, net.embedding->outChannels());
-    local.invalidRadiance = net.embedding->apply(frame.samples, height, width, frame.spp, depth, embedding);
-    addRadiance(frame, s.radiance, true);
+    local.invalidRadiance =
+        net.embedding->apply(frame.samples, height, width, frame.spp, depth, embedding, &s.radiance);
     scale(s.radiance, 1.0f / float(frame.spp));
     clock.mark("embedding");
     return s.denoiseEmbedded(std::move(embedding), depth, frame.info, frame.motion, frame.valid, local, clock,
@@ -377,8 +372,8 @@ void Denoiser::addSamples(int width, int height, int spp, const float* samples) 
         p.milliseconds = 0.0;
         p.hiddenSum = s.pool.take(height, width, net.embedding->hiddenChannels());
     }
-    p.invalidRadiance += net.embedding->accumulate(samples, height, width, spp, p.depthScale, p.hiddenSum, first);
-    addRadiance(batch, s.radiance, first);
+    p.invalidRadiance +=
+        net.embedding->accumulate(samples, height, width, spp, p.depthScale, p.hiddenSum, first, &s.radiance);
     p.spp += spp;
     p.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }

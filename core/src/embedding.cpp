@@ -17,11 +17,11 @@ constexpr int kChunkSamples = 96;
 constexpr int kRadianceChannels = 6;  // diffuse and specular, in front of the other features
 static_assert(channel::kDiffuse == 0 && channel::kSpecular == 3, "radiance leads the sample");
 
-// The input transform of MODEL.md section 1 for `count` consecutive samples into `input`
-// ([count][18]). The radiance goes through a contiguous scratch buffer ([count][6]) so the
-// sanitising and log1p loop vectorises. Returns how many radiance values were non-finite or
-// negative.
-long long transformSamples(const float* samples, int count, float depthScale, float* input, float* radiance) {
+// The input transform of MODEL.md section 1 for `count` consecutive samples, first half:
+// copies them into `input` ([count][18]) and their radiance, non-finite and negative values
+// read as 0, into `radiance` ([count][6], contiguous so that the loop vectorises). Returns how
+// many radiance values were non-finite or negative.
+long long sanitiseSamples(const float* samples, int count, float* input, float* radiance) {
     std::memcpy(input, samples, std::size_t(count) * kFeatureCount * sizeof(float));
     for (int s = 0; s < count; ++s)
         std::memcpy(radiance + std::size_t(s) * kRadianceChannels, input + std::size_t(s) * kFeatureCount,
@@ -34,14 +34,34 @@ long long transformSamples(const float* samples, int count, float depthScale, fl
         // False for NaN, negative values and +Inf (-Inf is negative).
         const bool ok = v >= 0.0f && v <= 3.40282347e38f;
         bad += ok ? 0 : 1;
-        radiance[i] = log1pNonNegative(ok ? v : 0.0f);
+        radiance[i] = ok ? v : 0.0f;
     }
+    return bad;
+}
+
+// Second half: log(1 + radiance) back into the samples' radiance channels, depth normalised.
+void compressSamples(int count, float depthScale, float* input, float* radiance) {
+    const int n = count * kRadianceChannels;
+#pragma omp simd
+    for (int i = 0; i < n; ++i) radiance[i] = log1pNonNegative(radiance[i]);
     for (int s = 0; s < count; ++s) {
         float* f = input + std::size_t(s) * kFeatureCount;
         std::memcpy(f, radiance + std::size_t(s) * kRadianceChannels, kRadianceChannels * sizeof(float));
         f[channel::kDepth] *= depthScale;
     }
-    return bad;
+}
+
+// Adds each of `pixels` pixels' sanitised radiance (diffuse + specular, over its spp samples in
+// order) to `sums` ([pixels][3]), starting from 0 when `first`.
+void sumRadiance(const float* radiance, int pixels, int spp, bool first, float* sums) {
+    for (int p = 0; p < pixels; ++p) {
+        float* o = sums + std::size_t(p) * 3;
+        if (first) o[0] = o[1] = o[2] = 0.0f;
+        for (int s = 0; s < spp; ++s) {
+            const float* r = radiance + (std::size_t(p) * spp + std::size_t(s)) * kRadianceChannels;
+            for (int c = 0; c < 3; ++c) o[c] += r[c] + r[3 + c];
+        }
+    }
 }
 
 }  // namespace
@@ -75,7 +95,7 @@ int Embedding::hiddenChannels() const {
 
 template <class Consume>
 long long Embedding::forEachChunk(const float* samples, long long pixels, int spp, float depthScale,
-                                  Consume consume) const {
+                                  FeatureMap* radianceSum, bool firstRadiance, Consume consume) const {
     const int chunkPixels = std::max(1, kChunkSamples / spp);
     const int chunkSamples = chunkPixels * spp;
     const long long chunks = (pixels + chunkPixels - 1) / chunkPixels;
@@ -95,8 +115,10 @@ long long Embedding::forEachChunk(const float* samples, long long pixels, int sp
             const long long p0 = chunk * chunkPixels;
             const int count = int(std::min<long long>(chunkPixels, pixels - p0));
             const int n = count * spp;
-            bad += transformSamples(samples + std::size_t(p0) * spp * kFeatureCount, n, depthScale, input.data(),
-                                    radiance.data());
+            bad += sanitiseSamples(samples + std::size_t(p0) * spp * kFeatureCount, n, input.data(), radiance.data());
+            if (radianceSum)
+                sumRadiance(radiance.data(), count, spp, firstRadiance, radianceSum->data() + std::size_t(p0) * 3);
+            compressSamples(n, depthScale, input.data(), radiance.data());
 
             // Hidden layers per sample; `source` is what feeds the next layer.
             ConvSource source{input.data(), kFeatureCount};
@@ -113,11 +135,12 @@ long long Embedding::forEachChunk(const float* samples, long long pixels, int sp
 }
 
 long long Embedding::apply(const float* samples, int height, int width, int spp, float depthScale,
-                           FeatureMap& output) const {
+                           FeatureMap& output, FeatureMap* radianceSum) const {
     if (height < 0 || width < 0 || spp <= 0)
         throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
                     std::to_string(spp) + " samples per pixel");
     output.resize(height, width, outChannels());
+    if (radianceSum) radianceSum->resize(height, width, 3);
     const long long pixels = (long long)height * width;
     if (pixels == 0) return 0;
 
@@ -126,7 +149,7 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
     // per sample (the same function up to float rounding, and S times fewer operations there).
     const int channels = hiddenChannels();
     const float inverseSpp = 1.0f / float(spp);
-    return forEachChunk(samples, pixels, spp, depthScale,
+    return forEachChunk(samples, pixels, spp, depthScale, radianceSum, true,
                         [&](long long p0, int count, const float* hidden, float* mean) {
                             // Mean over each pixel's samples, in sample order.
                             for (int p = 0; p < count; ++p) {
@@ -148,20 +171,24 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
 }
 
 long long Embedding::accumulate(const float* samples, int height, int width, int spp, float depthScale,
-                                FeatureMap& hiddenSum, bool first) const {
+                                FeatureMap& hiddenSum, bool first, FeatureMap* radianceSum) const {
     if (height < 0 || width < 0 || spp <= 0)
         throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
                     std::to_string(spp) + " samples per pixel");
     const int channels = hiddenChannels();
-    if (first)
+    if (first) {
         hiddenSum.resize(height, width, channels);
-    else if (hiddenSum.height() != height || hiddenSum.width() != width || hiddenSum.channels() != channels)
+        if (radianceSum) radianceSum->resize(height, width, 3);
+    } else if (hiddenSum.height() != height || hiddenSum.width() != width || hiddenSum.channels() != channels ||
+               (radianceSum && (radianceSum->height() != height || radianceSum->width() != width ||
+                                radianceSum->channels() != 3))) {
         throw Error("Embedding: a batch of " + std::to_string(height) + "x" + std::to_string(width) +
-                    " does not match the sum it is added to");
+                    " does not match the sums it is added to");
+    }
     const long long pixels = (long long)height * width;
     if (pixels == 0) return 0;
     // The same additions in the same order as apply()'s mean, without the final scaling.
-    return forEachChunk(samples, pixels, spp, depthScale,
+    return forEachChunk(samples, pixels, spp, depthScale, radianceSum, first,
                         [&](long long p0, int count, const float* hidden, float*) {
                             for (int p = 0; p < count; ++p) {
                                 float* m = hiddenSum.data() + (std::size_t(p0) + std::size_t(p)) * channels;

@@ -24,17 +24,21 @@ public:
     // samples: [pixels][spp][kFeatureCount] raw features (frame layout); depthScale from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).
     // Non-finite or negative radiance is treated as 0; returns how many radiance values were.
+    // With `radianceSum`, also writes each pixel's sum over its samples of that radiance
+    // (diffuse + specular, 3 channels, added in sample order): the noisy radiance times spp,
+    // without a second pass over the samples.
     // Multithreaded; the result does not depend on the thread count.
     long long apply(const float* samples, int height, int width, int spp, float depthScale,
-                    FeatureMap& output) const;
+                    FeatureMap& output, FeatureMap* radianceSum = nullptr) const;
 
     // apply() in two steps, for samples that arrive in batches: accumulate() adds each sample's
     // output of all layers but the last to `hiddenSum` (height x width x hiddenChannels(),
-    // started afresh when `first`), finish() applies the last layer to hiddenSum / spp. Batches
+    // started afresh when `first`; likewise the radiance sums), finish() applies the last layer
+    // to hiddenSum / spp. Batches
     // added in sample order give apply()'s result bit for bit (the last layer is linear, so the
     // mean can be taken before it). accumulate() returns the bad radiance count as apply().
     long long accumulate(const float* samples, int height, int width, int spp, float depthScale,
-                         FeatureMap& hiddenSum, bool first) const;
+                         FeatureMap& hiddenSum, bool first, FeatureMap* radianceSum = nullptr) const;
     void finish(const FeatureMap& hiddenSum, int spp, FeatureMap& output) const;
     int hiddenChannels() const;
 
@@ -43,9 +47,11 @@ private:
     // consume(firstPixel, pixelCount, hidden, scratch) per chunk with hidden = the chunk's
     // per-sample outputs ([pixel][sample][hiddenChannels()]) and a per-thread scratch buffer of
     // chunkPixels x max(hiddenChannels(), kFeatureCount) floats.
+    // When radianceSum is given, the chunk's radiance sums go into it (started at 0 if
+    // firstRadiance).
     template <class Consume>
     long long forEachChunk(const float* samples, long long pixels, int spp, float depthScale,
-                           Consume consume) const;
+                           FeatureMap* radianceSum, bool firstRadiance, Consume consume) const;
 
     std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples
     int widest_ = 0;                  // most outputs of any layer
