@@ -163,8 +163,8 @@ struct Denoiser::State {
     float lastMeanDepth = 0.0f;
     // Temporal state (docs/MODEL.md sections 3 and 7).
     FeatureMap embeddingHistory, radianceHistory, output, lastFeatures;
-    // Every map with as many channels as the network's layers comes from the pool and goes back
-    // as soon as it is dead; the few-channel maps below are kept from frame to frame.
+    // Every other map of a frame comes from the pool and goes back as soon as it is dead; the
+    // noisy radiance and its warped history (alive across the U-Net anyway) are kept here.
     FeatureMapPool pool;
     FeatureMap radiance, historyRadiance;
     // A frame arriving in batches (addSamples): sums kept until finishFrame().
