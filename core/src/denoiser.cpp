@@ -314,14 +314,7 @@ void Denoiser::State::give(KernelMaps& maps) {
 }
 
 std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* report) {
-    if (frame.width() < 1 || frame.height() < 1 || frame.spp() < 1) throw Error("denoise: the frame is empty");
-    SampleFrameView view;
-    try {
-        view = frame.view();
-    } catch (const Error& e) {
-        throw Error(std::string("denoise: ") + e.what());
-    }
-    return denoise(view, report);
+    return denoise(frame.view("denoise"), report);
 }
 
 std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport* report) {

@@ -20,10 +20,11 @@ SampleFrame::SampleFrame(int width, int height, int spp, bool withReference)
     if (withReference) reference_.assign(pixelCount() * 3, 0.0f);
 }
 
-SampleFrameView SampleFrame::view() const {
+SampleFrameView SampleFrame::view(const std::string& user) const {
+    if (width_ < 1 || height_ < 1 || spp_ < 1) throw Error(user + ": the frame is empty");
     if (samples_.size() != pixelCount() * std::size_t(spp_) * kFeatureCount || motion_.size() != pixelCount() * 2 ||
         valid_.size() != pixelCount())
-        throw Error("the frame's buffers do not match its size " + std::to_string(width_) + "x" +
+        throw Error(user + ": the frame's buffers do not match its size " + std::to_string(width_) + "x" +
                     std::to_string(height_) + " at " + std::to_string(spp_) + " spp");
     return SampleFrameView{width_, height_, spp_, samples_.data(), motion_.data(), valid_.data(), info};
 }

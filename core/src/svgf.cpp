@@ -568,14 +568,7 @@ void Svgf::State::keepHistory() {
 }
 
 std::vector<float> Svgf::denoise(const SampleFrame& frame) {
-    if (frame.width() < 1 || frame.height() < 1 || frame.spp() < 1) throw Error("svgf: the frame is empty");
-    SampleFrameView view;
-    try {
-        view = frame.view();
-    } catch (const Error& e) {
-        throw Error(std::string("svgf: ") + e.what());
-    }
-    return denoise(view);
+    return denoise(frame.view("svgf"));
 }
 
 std::vector<float> Svgf::denoise(const SampleFrameView& frame) {

@@ -84,8 +84,9 @@ public:
 
     FrameInfo info;
 
-    // Throws affinity::Error when a buffer does not match the frame's size (they are public).
-    SampleFrameView view() const;
+    // Throws affinity::Error, its message starting with `user`, when the frame is empty or a
+    // buffer does not match the frame's size (they are public).
+    SampleFrameView view(const std::string& user) const;
 
     // Per-pixel mean of the samples' radiance (diffuse + specular): the noisy input, [y][x][3].
     std::vector<float> meanRadiance() const;
