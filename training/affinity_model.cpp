@@ -126,8 +126,8 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
                     (frame.valid.defined() ? shapeText(frame.valid) : std::string("nothing")));
     }
     const torch::Tensor motion = frame.motion.to(options);
-    const std::vector<std::int64_t> outputShape{batch, 3, height, width};
-    const bool history = !state.empty() && state.output.sizes() == outputShape;
+    const std::vector<std::int64_t> signalShape{batch, config_.signalChannels(), height, width};
+    const bool history = !state.empty() && state.output.sizes() == signalShape;
 
     FrameResult result;
     // Sections 1-2: sanitised inputs, per-sample embedding averaged per pixel.
@@ -135,15 +135,16 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     result.noisy = prepared.radiance;
     result.invalidCount = prepared.invalidCount;
     result.embedding = embed(prepared.networkInput);
+    const torch::Tensor signal = filterSignal(prepared, config_.albedoDemodulation);
 
     // Section 3: histories (warped state where valid, the current frame elsewhere).
     torch::Tensor validMask = torch::zeros(validShape, options);
-    torch::Tensor historyEmbedding = result.embedding, historyRadiance = result.noisy;
+    torch::Tensor historyEmbedding = result.embedding, historySignal = signal;
     if (history) {
         validMask = (frame.valid.to(options) > 0.5).to(options);
         const torch::Tensor use = validMask > 0.5;
         historyEmbedding = torch::where(use, warpBilinear(state.embedding, motion), result.embedding);
-        historyRadiance = torch::where(use, warpBilinear(state.radiance, motion), result.noisy);
+        historySignal = torch::where(use, warpBilinear(state.radiance, motion), signal);
     }
 
     // Sections 4-5: U-Net and per-pixel parameters.
@@ -161,7 +162,7 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     // Section 3 (continued): the learned moving averages.
     const torch::Tensor& lambda = result.lambda;
     const torch::Tensor accumulatedEmbedding = (1 - lambda) * result.embedding + lambda * historyEmbedding;
-    result.accumulated = (1 - lambda) * result.noisy + lambda * historyRadiance;
+    result.accumulated = (1 - lambda) * signal + lambda * historySignal;
 
     // Section 6: dilated kernels 0..K-2; section 7: the last one, with temporal taps.
     torch::Tensor filtered = result.accumulated;
@@ -172,12 +173,13 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     if (history) {
         const TemporalTaps temporal{result.temporalBandwidth, warpBilinear(state.output, motion),
                                     warpBilinear(state.features, motion), validMask};
-        result.output = affinityFilterTemporal(filtered, last, config_.kernelSize, 1 << (K - 1), temporal);
+        filtered = affinityFilterTemporal(filtered, last, config_.kernelSize, 1 << (K - 1), temporal);
     } else {
-        result.output = affinityFilter(filtered, last, config_.kernelSize, 1 << (K - 1));
+        filtered = affinityFilter(filtered, last, config_.kernelSize, 1 << (K - 1));
     }
+    result.output = radianceFromSignal(filtered, prepared.albedo);
 
-    state = {accumulatedEmbedding, result.accumulated, result.output, last.features};
+    state = {accumulatedEmbedding, result.accumulated, filtered, last.features};
     return result;
 }
 

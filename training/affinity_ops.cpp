@@ -76,10 +76,14 @@ PreparedInputs prepareInputs(const at::Tensor& samples) {
     const at::Tensor clean = at::where(finite.logical_and(radiance > 0), radiance, 0.0);
     const at::Tensor invalidCount = finite.logical_not().logical_or(radiance < 0).sum(perFrame);
     const at::Tensor noisy = (clean.narrow(2, 0, 3) + clean.narrow(2, 3, 3)).mean(1);
+    const at::Tensor rawAlbedo = samples.narrow(2, channel::kAlbedo, 3);
+    const at::Tensor albedo = at::where(at::isfinite(rawAlbedo).logical_and(rawAlbedo > 0), rawAlbedo, 0.0).mean(1);
 
     // depthScale = 1 / mean of the positive finite depths (the core does the same), summed in
     // double so that large frames keep full float precision.
-    const at::Tensor depth = samples.narrow(2, channel::kDepth, 1);
+    // Every other feature: non-finite values read as 0 (the core does the same).
+    auto finiteOrZero = [](const at::Tensor& values) { return at::where(at::isfinite(values), values, 0.0); };
+    const at::Tensor depth = finiteOrZero(samples.narrow(2, channel::kDepth, 1));
     const at::Tensor hit = at::isfinite(depth).logical_and(depth > 0);
     const at::Tensor depthSum = at::where(hit, depth.to(at::kDouble), 0.0).sum(perFrame);
     const at::Tensor hitCount = hit.sum(perFrame).to(at::kDouble);
@@ -87,10 +91,22 @@ PreparedInputs prepareInputs(const at::Tensor& samples) {
     const at::Tensor scale =
         at::where(any, hitCount / at::where(any, depthSum, 1.0), 0.0).to(samples.scalar_type()).view({batch, 1, 1, 1, 1});
 
-    at::Tensor networkInput = at::cat({at::log1p(clean), samples.narrow(2, channel::kNormal, 3), depth * scale,
-                                       samples.narrow(2, channel::kAlbedo, kFeatureCount - channel::kAlbedo)},
-                                      2);
-    return {networkInput, noisy, invalidCount};
+    at::Tensor networkInput =
+        at::cat({at::log1p(clean), finiteOrZero(samples.narrow(2, channel::kNormal, 3)), depth * scale,
+                 finiteOrZero(samples.narrow(2, channel::kAlbedo, kFeatureCount - channel::kAlbedo))},
+                2);
+    return {networkInput, noisy, clean.narrow(2, 0, 3).mean(1), clean.narrow(2, 3, 3).mean(1), albedo, invalidCount};
+}
+
+at::Tensor filterSignal(const PreparedInputs& prepared, bool albedoDemodulation) {
+    if (!albedoDemodulation) return prepared.radiance;
+    return at::cat({prepared.diffuse / prepared.albedo.clamp_min(kDemodulationFloor), prepared.specular}, 1);
+}
+
+at::Tensor radianceFromSignal(const at::Tensor& signal, const at::Tensor& albedo) {
+    if (signal.size(1) == 3) return signal;
+    checkImage(signal, "a demodulated signal", 6);
+    return albedo.clamp_min(kDemodulationFloor) * signal.narrow(1, 0, 3) + signal.narrow(1, 3, 3);
 }
 
 at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
@@ -129,15 +145,15 @@ at::Tensor upsampleNearest(const at::Tensor& input, std::int64_t height, std::in
 }
 
 at::Tensor affinityFilter(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation) {
-    checkImage(radiance, "radiance", 3);
+    checkImage(radiance, "the filtered signal", 0);
     const WeightedSum sum = spatialSum(radiance, kernel, tapSize, dilation);
     return sum.numerator / (sum.denominator + kAffinityEpsilon);
 }
 
 at::Tensor affinityFilterTemporal(const at::Tensor& radiance, const KernelParams& kernel, int tapSize,
                                   int dilation, const TemporalTaps& temporal) {
-    checkImage(radiance, "radiance", 3);
-    checkImage(temporal.output, "the warped output", 3);
+    checkImage(radiance, "the filtered signal", 0);
+    checkImage(temporal.output, "the warped output", radiance.size(1));
     WeightedSum sum = spatialSum(radiance, kernel, tapSize, dilation);
     const std::int64_t height = radiance.size(2), width = radiance.size(3);
     const std::vector<std::int64_t> padding{1, 1, 1, 1};

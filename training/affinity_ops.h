@@ -10,10 +10,22 @@ namespace affinity::train {
 struct PreparedInputs {
     at::Tensor networkInput;    // [B, S, 18, H, W]
     at::Tensor radiance;        // [B, 3, H, W]: mean over samples of the sanitised radiance
+    at::Tensor diffuse;         // [B, 3, H, W]: its diffuse part
+    at::Tensor specular;        // [B, 3, H, W]: its specular part
+    at::Tensor albedo;          // [B, 3, H, W]: mean albedo (non-finite or negative read as 0)
     at::Tensor invalidCount;    // [B] int64: radiance values that were non-finite or negative
 };
 // samples: [B, S, 18, H, W] raw features. depthScale is computed per batch element (frame).
 PreparedInputs prepareInputs(const at::Tensor& samples);
+
+// Albedo below this divides (and multiplies) as this: a black surface reflects no diffuse light,
+// so nothing is lost, and the quotient stays bounded.
+inline constexpr double kDemodulationFloor = 0.01;
+// What the kernels filter (docs/MODEL.md section 6): the radiance [B, 3, H, W], or with albedo
+// demodulation the diffuse radiance over max(albedo, floor) and the specular radiance [B, 6, H, W].
+at::Tensor filterSignal(const PreparedInputs& prepared, bool albedoDemodulation);
+// The inverse: radiance [B, 3, H, W] from a filtered signal and the frame's albedo.
+at::Tensor radianceFromSignal(const at::Tensor& signal, const at::Tensor& albedo);
 
 // out(p) = bilinear lookup of `previous` at (x + motion_x, y + motion_y), pixel centres at
 // integer coordinates, taps outside the image clamped to the border. motion: [B, 2, H, W]
@@ -34,7 +46,7 @@ struct KernelParams {
 };
 
 // The taps on the previous frame for the last kernel (section 7), all already warped:
-// output Ô [B, 3, H, W], features ĝ [B, F, H, W], validity v̂ [B, 1, H, W]; bandwidth b
+// output Ô [B, C, H, W] (in the filtered signal's channels), features ĝ [B, F, H, W], validity v̂ [B, 1, H, W]; bandwidth b
 // [B, 1, H, W] is the current frame's.
 struct TemporalTaps {
     at::Tensor bandwidth;
@@ -45,7 +57,7 @@ struct TemporalTaps {
 
 inline constexpr double kAffinityEpsilon = 1e-8;
 
-// One dilated spatial kernel (section 6) on radiance [B, 3, H, W]: tapSize x tapSize taps at
+// One dilated spatial kernel (section 6) on a signal [B, C, H, W] (C = 3 or 6): tapSize x tapSize taps at
 // the given dilation, out-of-image taps skipped.
 at::Tensor affinityFilter(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation);
 // The last kernel (section 7): the spatial taps plus 3x3 temporal taps in one normalised sum.

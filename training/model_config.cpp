@@ -157,6 +157,13 @@ ModelConfig configFromWeights(const Weights& weights) {
     config.kernels = readConfigInt(weights, "config.kernels");
     config.affinityFeatures = readConfigInt(weights, "config.affinity_features");
     config.kernelSize = readConfigInt(weights, "config.kernel_size");
+    // Optional: files written before demodulation existed filter radiance.
+    if (weights.has("config.albedo_demodulation")) {
+        const int demodulation = readConfigInt(weights, "config.albedo_demodulation");
+        if (demodulation != 0 && demodulation != 1)
+            throw Error(source + ": config.albedo_demodulation is " + str(demodulation) + ", expected 0 or 1");
+        config.albedoDemodulation = demodulation == 1;
+    }
 
     for (int i = 0;; ++i) {
         const std::string name = "embed." + str(i) + ".weight";
@@ -235,14 +242,16 @@ FlopCount flopCount(const ModelConfig& config) {
     flops.unetPerPixel += 2.0 * in * config.headChannels();
 
     // A neighbour tap: F differences, squares and sums, the bandwidth product, an exp, a
-    // weighted RGB multiply-add and the denominator.
-    const double tap = 3.0 * config.affinityFeatures + 10.0;
+    // weighted multiply-add per filtered channel and the denominator.
+    const int C = config.signalChannels();
+    const double tap = 3.0 * config.affinityFeatures + 4.0 + 2.0 * C;
     const double taps = double(config.kernelSize) * config.kernelSize - 1.0;
     flops.filterPerPixel = config.kernels * (taps * tap + 7.0 + 4.0) + 9.0 * tap;
-    // Bilinear warps (8 per channel) of the embedding, radiance, output and features, and the
-    // two moving averages (3 per channel).
+    // Bilinear warps (8 per channel) of the embedding, radiance, output and features, the
+    // two moving averages (3 per channel), and demodulating and remodulating (2 per channel).
     const int E = config.embeddingChannels();
-    flops.filterPerPixel += 8.0 * (E + 3 + 3 + config.affinityFeatures) + 3.0 * (E + 3);
+    flops.filterPerPixel += 8.0 * (E + C + C + config.affinityFeatures) + 3.0 * (E + C);
+    if (config.albedoDemodulation) flops.filterPerPixel += 2.0 * 6.0;
     return flops;
 }
 

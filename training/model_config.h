@@ -25,8 +25,13 @@ struct ModelConfig {
     int kernels = 3;            // K: dilated affinity kernels, the last one also temporal
     int affinityFeatures = 8;   // F: affinity features per kernel
     int kernelSize = 5;         // T: spatial taps per side (odd)
+    // Filter diffuse radiance divided by albedo (and specular as it is), then multiply the
+    // albedo back (docs/MODEL.md section 6): texture detail need not survive the kernels.
+    bool albedoDemodulation = false;
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
+    // Channels the kernels filter: RGB radiance, or demodulated diffuse RGB + specular RGB.
+    int signalChannels() const { return albedoDemodulation ? 6 : 3; }
     // P = K (F + 2) + 2: per-kernel features, bandwidth, centre weight; temporal bandwidth, lambda.
     int headChannels() const { return kernels * (affinityFeatures + 2) + 2; }
 };

@@ -72,6 +72,9 @@ int runDescribe(const std::vector<std::string>& args) {
     std::cout << "  bottleneck     " << joined(config.bottleneck.widths) << "\n";
     std::cout << "  kernels        K = " << config.kernels << ", F = " << config.affinityFeatures
               << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
+    std::cout << "  filters        "
+              << (config.albedoDemodulation ? "diffuse / albedo and specular (albedo demodulation)" : "radiance")
+              << "\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];

@@ -26,6 +26,7 @@ std::vector<NamedTensor> modelTensors(const AffinityModel& model) {
     integer("config.kernels", config.kernels);
     integer("config.affinity_features", config.affinityFeatures);
     integer("config.kernel_size", config.kernelSize);
+    if (config.albedoDemodulation) integer("config.albedo_demodulation", 1);
     return tensors;
 }
 

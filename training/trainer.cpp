@@ -309,7 +309,9 @@ TrainSummary runTraining(const TrainOptions& options) {
     } else if (!options.initWeights.empty()) {
         model = modelFromWeights(Weights::fromFile(options.initWeights));
     } else {
-        model = makeModel(presetConfig(options.preset), options.seed);
+        ModelConfig config = presetConfig(options.preset);
+        config.albedoDemodulation = options.albedoDemodulation;
+        model = makeModel(config, options.seed);
     }
     model->to(device);
     model->train();

@@ -19,7 +19,8 @@ constexpr float kEpsilon = 1e-8f;
 constexpr int kLanes = 8;
 constexpr int kStripVectors = 8;
 constexpr int kStripPixels = kStripVectors * kLanes;
-constexpr int kRadianceChannels = 3;
+// Filtered signals: RGB radiance, or demodulated diffuse RGB + specular RGB (filter_signal.h).
+constexpr int kSignalChannelCounts[] = {3, 6};
 // Feature counts with a kernel specialised at compile time (feature loop fully unrolled);
 // others use the generic one.
 constexpr int kMaxSpecialisedFeatures = 16;
@@ -70,6 +71,7 @@ private:
             switch (channels) {
                 case 1: std::memcpy(destination, pixels, std::size_t(width_) * sizeof(float)); break;
                 case 3: deinterleave<3>(pixels, destination); break;
+                case 6: deinterleave<6>(pixels, destination); break;
                 case 8: transposeEights(pixels, destination); break;
                 default: deinterleave<0>(pixels, destination, channels); break;
             }
@@ -133,8 +135,8 @@ struct RowInputs {
     int width;
     int features;
     std::size_t stride;          // of the spatial rows
-    const float* centre;         // features, radiance, a, c (and b when temporal) at row y
-    const float* const* taps;    // per tap row j = 0..T-1: features and radiance, or null outside
+    const float* centre;         // features, signal, a, c (and b when temporal) at row y
+    const float* const* taps;    // per tap row j = 0..T-1: features and signal, or null outside
     int tapSize;
     int dilation;
     std::size_t temporalStride;  // of the temporal rows
@@ -161,18 +163,19 @@ Vec8f squaredDistance(const float* centre, const float* neighbour, std::size_t c
 // The weighted sums of one strip of kStripPixels pixels. Loops run tap by tap over the strip's
 // vectors, which are independent, so the processor overlaps their long exp chains; the
 // accumulators stay in L1.
+template <int kChannels>
 struct StripSums {
-    Vec8f r[kStripVectors], g[kStripVectors], b[kStripVectors], weight[kStripVectors];
+    Vec8f value[kChannels][kStripVectors], weight[kStripVectors];
 };
 
 // Adds one tap, the neighbour at the same offset for every pixel of the strip: `neighbour`
 // points at the features of the first pixel's neighbour, `column` is that neighbour's image
-// column, `radiance` its radiance, `validity` (temporal taps only) scales each weight.
-// kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
-template <int kFeatures, bool kCheckColumns>
-void addTaps(StripSums& sums, const Vec8f* negativeBandwidthSquared, const float* centre, std::size_t centreStride,
-             const float* neighbour, std::size_t neighbourStride, const float* radiance, const float* validity,
-             int features, int column, int width) {
+// column, `signal` its kChannels filtered values, `validity` (temporal taps only) scales each
+// weight. kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
+template <int kFeatures, int kChannels, bool kCheckColumns>
+void addTaps(StripSums<kChannels>& sums, const Vec8f* negativeBandwidthSquared, const float* centre,
+             std::size_t centreStride, const float* neighbour, std::size_t neighbourStride, const float* signal,
+             const float* validity, int features, int column, int width) {
     const Vec8i lane = {0, 1, 2, 3, 4, 5, 6, 7};
     for (int v = 0; v < kStripVectors; ++v) {
         const int at = v * kLanes;
@@ -184,34 +187,30 @@ void addTaps(StripSums& sums, const Vec8f* negativeBandwidthSquared, const float
             const Vec8i columns = lane + (column + at);
             weight = ((columns >= 0) & (columns < width)) ? weight : Vec8f{};
         }
-        sums.r[v] += weight * load8(radiance + at);
-        sums.g[v] += weight * load8(radiance + neighbourStride + at);
-        sums.b[v] += weight * load8(radiance + 2 * neighbourStride + at);
+        for (int c = 0; c < kChannels; ++c) sums.value[c][v] += weight * load8(signal + c * neighbourStride + at);
         sums.weight[v] += weight;
     }
 }
 
 // Filters the kStripPixels pixels starting at column x of one row (lanes past the image's
 // right edge compute on zero padding and are not stored).
-template <int kFeatures, bool kCheckColumns, bool kTemporal>
+template <int kFeatures, int kChannels, bool kCheckColumns, bool kTemporal>
 void filterStrip(const RowInputs& in, int x, float* output) {
     const int features = kFeatures > 0 ? kFeatures : in.features;
     const std::size_t stride = in.stride;
     const float* centre = in.centre + x;
-    const float* centreRadiance = centre + features * stride;
-    const float* bandwidth = centre + (features + 3) * stride;
-    const float* centreWeight = centre + (features + 4) * stride;
+    const float* centreSignal = centre + features * stride;
+    const float* bandwidth = centre + (features + kChannels) * stride;
+    const float* centreWeight = centre + (features + kChannels + 1) * stride;
 
-    StripSums sums;
+    StripSums<kChannels> sums;
     Vec8f negativeBandwidthSquared[kStripVectors];
     for (int v = 0; v < kStripVectors; ++v) {
         const int at = v * kLanes;
         const Vec8f a = load8(bandwidth + at);
         negativeBandwidthSquared[v] = -(a * a);
         const Vec8f c = load8(centreWeight + at);
-        sums.r[v] = c * load8(centreRadiance + at);
-        sums.g[v] = c * load8(centreRadiance + stride + at);
-        sums.b[v] = c * load8(centreRadiance + 2 * stride + at);
+        for (int k = 0; k < kChannels; ++k) sums.value[k][v] = c * load8(centreSignal + k * stride + at);
         sums.weight[v] = c;
     }
 
@@ -223,14 +222,15 @@ void filterStrip(const RowInputs& in, int x, float* output) {
             if (i == 0 && j == radius) continue;  // the centre, weighted by c above
             const int column = x + i * in.dilation;
             const float* neighbour = tapRow + column;
-            addTaps<kFeatures, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride, neighbour, stride,
-                                              neighbour + features * stride, nullptr, features, column, in.width);
+            addTaps<kFeatures, kChannels, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride, neighbour,
+                                                         stride, neighbour + features * stride, nullptr, features,
+                                                         column, in.width);
         }
     }
 
     if constexpr (kTemporal) {
         const std::size_t temporalStride = in.temporalStride;
-        const float* temporalBandwidth = centre + (features + 5) * stride;
+        const float* temporalBandwidth = centre + (features + kChannels + 2) * stride;
         Vec8f negativeTemporalSquared[kStripVectors];
         for (int v = 0; v < kStripVectors; ++v) {
             const Vec8f b = load8(temporalBandwidth + v * kLanes);
@@ -243,9 +243,10 @@ void filterStrip(const RowInputs& in, int x, float* output) {
                 const int column = x + i;
                 const float* neighbour = tapRow + column;
                 const float* warpedOutput = neighbour + features * temporalStride;
-                addTaps<kFeatures, kCheckColumns>(sums, negativeTemporalSquared, centre, stride, neighbour,
-                                                  temporalStride, warpedOutput, warpedOutput + 3 * temporalStride,
-                                                  features, column, in.width);
+                addTaps<kFeatures, kChannels, kCheckColumns>(sums, negativeTemporalSquared, centre, stride,
+                                                             neighbour, temporalStride, warpedOutput,
+                                                             warpedOutput + kChannels * temporalStride, features,
+                                                             column, in.width);
             }
         }
     }
@@ -253,43 +254,45 @@ void filterStrip(const RowInputs& in, int x, float* output) {
     const int count = std::min(kStripPixels, in.width - x);
     for (int v = 0; v * kLanes < count; ++v) {
         const Vec8f normaliser = sums.weight[v] + kEpsilon;
-        const Vec8f r = sums.r[v] / normaliser, g = sums.g[v] / normaliser, b = sums.b[v] / normaliser;
+        Vec8f result[kChannels];
+        for (int c = 0; c < kChannels; ++c) result[c] = sums.value[c][v] / normaliser;
         const int lanes = std::min(kLanes, count - v * kLanes);
-        float* out = output + 3 * std::size_t(v * kLanes);
-        for (int l = 0; l < lanes; ++l) {
-            out[3 * l] = r[l];
-            out[3 * l + 1] = g[l];
-            out[3 * l + 2] = b[l];
-        }
+        float* out = output + kChannels * std::size_t(v * kLanes);
+        for (int l = 0; l < lanes; ++l)
+            for (int c = 0; c < kChannels; ++c) out[kChannels * l + c] = result[c][l];
     }
 }
 
-template <int kFeatures, bool kTemporal>
+template <int kFeatures, int kChannels, bool kTemporal>
 void filterRow(const RowInputs& in, float* output) {
     // Strips whose taps all lie inside the image need no column test.
     const int margin = std::max((in.tapSize / 2) * in.dilation, kTemporal ? 1 : 0);
     for (int x = 0; x < in.width; x += kStripPixels) {
         const bool interior = x - margin >= 0 && x + kStripPixels - 1 + margin < in.width;
+        float* out = output + kChannels * std::size_t(x);
         if (interior) {
-            filterStrip<kFeatures, false, kTemporal>(in, x, output + 3 * std::size_t(x));
+            filterStrip<kFeatures, kChannels, false, kTemporal>(in, x, out);
         } else {
-            filterStrip<kFeatures, true, kTemporal>(in, x, output + 3 * std::size_t(x));
+            filterStrip<kFeatures, kChannels, true, kTemporal>(in, x, out);
         }
     }
 }
 
 using RowFunction = void (*)(const RowInputs&, float*);
 
-template <bool kTemporal, int... kCounts>
+template <int kChannels, bool kTemporal, int... kCounts>
 RowFunction selectRowFunction(int features, std::integer_sequence<int, kCounts...>) {
-    RowFunction chosen = &filterRow<0, kTemporal>;
-    ((features == kCounts + 1 ? (chosen = &filterRow<kCounts + 1, kTemporal>, 0) : 0), ...);
+    RowFunction chosen = &filterRow<0, kChannels, kTemporal>;
+    ((features == kCounts + 1 ? (chosen = &filterRow<kCounts + 1, kChannels, kTemporal>, 0) : 0), ...);
     return chosen;
 }
 
 template <bool kTemporal>
-RowFunction rowFunctionFor(int features) {
-    return selectRowFunction<kTemporal>(features, std::make_integer_sequence<int, kMaxSpecialisedFeatures>{});
+RowFunction rowFunctionFor(int features, int channels) {
+    constexpr auto counts = std::make_integer_sequence<int, kMaxSpecialisedFeatures>{};
+    static_assert(kSignalChannelCounts[0] == 3 && kSignalChannelCounts[1] == 6);
+    return channels == 3 ? selectRowFunction<3, kTemporal>(features, counts)
+                         : selectRowFunction<6, kTemporal>(features, counts);
 }
 
 void checkMap(const FeatureMap& map, const char* name, int height, int width, int channels) {
@@ -319,13 +322,18 @@ void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tap
     const int height = radiance.height(), width = radiance.width();
     const int features = kernel.features->channels();
     if (features < 1) throw Error("affinity filter: the kernel has no features");
-    checkMap(radiance, "the radiance", height, width, kRadianceChannels);
+    const int channels = radiance.channels();
+    if (std::find(std::begin(kSignalChannelCounts), std::end(kSignalChannelCounts), channels) ==
+        std::end(kSignalChannelCounts))
+        throw Error("affinity filter: the filtered signal has " + std::to_string(channels) +
+                    " channels, expected 3 (radiance) or 6 (demodulated diffuse and specular)");
+    checkMap(radiance, "the filtered signal", height, width, channels);
     checkMap(*kernel.features, "the features", height, width, features);
     checkMap(*kernel.bandwidth, "the bandwidth a", height, width, 1);
     checkMap(*kernel.centre, "the centre weight c", height, width, 1);
     if (temporal != nullptr) {
         checkMap(*temporal->bandwidth, "the temporal bandwidth b", height, width, 1);
-        checkMap(*temporal->output, "the warped output", height, width, kRadianceChannels);
+        checkMap(*temporal->output, "the warped output", height, width, channels);
         checkMap(*temporal->features, "the warped features", height, width, features);
         checkMap(*temporal->valid, "the warped validity", height, width, 1);
     }
@@ -345,7 +353,7 @@ void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSi
                                                              &output == temporal->features || &output == temporal->valid));
     FeatureMap separate;
     FeatureMap& target = outputAliasesInput ? separate : output;
-    target.resize(height, width, kRadianceChannels);
+    target.resize(height, width, radiance.channels());
     if (height == 0 || width == 0) {
         if (outputAliasesInput) output = std::move(separate);
         return;
@@ -355,7 +363,8 @@ void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSi
     const int pad = radius * dilation;
     std::vector<const FeatureMap*> spatialSources = {kernel.features, &radiance, kernel.bandwidth, kernel.centre};
     if (temporal != nullptr) spatialSources.push_back(temporal->bandwidth);
-    const RowFunction filterRowFunction = temporal != nullptr ? rowFunctionFor<true>(features) : rowFunctionFor<false>(features);
+    const RowFunction filterRowFunction = temporal != nullptr ? rowFunctionFor<true>(features, radiance.channels())
+                                                              : rowFunctionFor<false>(features, radiance.channels());
 
     // Allocated outside the parallel region so that an allocation failure throws normally.
     const int threads = std::max(1, omp_get_max_threads());

@@ -13,13 +13,15 @@ struct KernelParams {
     const FeatureMap* centre;
 };
 
-// One dilated spatial pass: output = normalised affinity-weighted sum of `radiance` (3
-// channels) over the tapSize x tapSize grid with the given dilation.
+// One dilated spatial pass: output = normalised affinity-weighted sum of `radiance`, the
+// filtered signal (3 channels, or 6 when demodulated: filter_signal.h), over the
+// tapSize x tapSize grid with the given dilation.
 void affinityFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
                     FeatureMap& output);
 
 // The last pass: the spatial taps as above plus 3x3 temporal taps on the warped previous
-// output, weighted by exp(-b^2 ||f(p) - warpedFeatures(q)||^2) * warpedValid(q).
+// output (as many channels as `radiance`), weighted by
+// exp(-b^2 ||f(p) - warpedFeatures(q)||^2) * warpedValid(q).
 void affinityFilterTemporal(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
                             const FeatureMap& temporalBandwidth, const FeatureMap& warpedOutput,
                             const FeatureMap& warpedFeatures, const FeatureMap& warpedValid, FeatureMap& output);

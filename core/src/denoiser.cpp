@@ -9,6 +9,7 @@
 #include "affinity/error.h"
 #include "affinity_filter.h"
 #include "feature_map_pool.h"
+#include "filter_signal.h"
 #include "network.h"
 
 namespace affinity {
@@ -44,13 +45,6 @@ float depthScale(const SampleFrameView& frame) {
         count += rowCounts[std::size_t(y)];
     }
     return count > 0 ? float(double(count) / sum) : 0.0f;
-}
-
-void scale(FeatureMap& map, float factor) {
-    float* values = map.data();
-    const std::size_t count = map.size();
-#pragma omp parallel for simd schedule(static)
-    for (std::size_t i = 0; i < count; ++i) values[i] *= factor;
 }
 
 // warped = current wherever the history is not valid.
@@ -161,12 +155,15 @@ struct Denoiser::State {
     int lastWidth = 0, lastHeight = 0;
     Matrix4 lastWorldToCamera{};
     float lastMeanDepth = 0.0f;
-    // Temporal state (docs/MODEL.md sections 3 and 7).
-    FeatureMap embeddingHistory, radianceHistory, output, lastFeatures;
+    // Temporal state (docs/MODEL.md sections 3 and 7): the output is the last kernel's, in the
+    // filtered signal's channels (filter_signal.h).
+    FeatureMap embeddingHistory, signalHistory, output, lastFeatures;
     // Every other map of a frame comes from the pool and goes back as soon as it is dead; the
-    // noisy radiance and its warped history (alive across the U-Net anyway) are kept here.
+    // filtered signal, its warped history and the albedo (alive across the U-Net anyway) are
+    // kept here.
     FeatureMapPool pool;
-    FeatureMap radiance, historyRadiance;
+    FeatureMap signal, historySignal, albedo;
+    FeatureMap sampleSums;  // Embedding's per-pixel sums, from the pool until the signal is made
     // A frame arriving in batches (addSamples): sums kept until finishFrame().
     struct Pending {
         FeatureMap hiddenSum;  // from the pool
@@ -184,7 +181,10 @@ struct Denoiser::State {
     void runBlock(const std::vector<Conv2d>& block, std::size_t first, std::size_t end, FeatureMap& map);
     KernelMaps kernelParameters(const Network& net, const UnetTail& tail);
     void give(KernelMaps& maps);
-    // Everything after the embedding and the noisy radiance (in `radiance`): history, U-Net,
+    // The filtered signal (and albedo) of a frame of `spp` samples from `sampleSums`, whose
+    // memory goes back to the pool.
+    void makeSignal(int spp);
+    // Everything after the embedding and the filtered signal (in `signal`): history, U-Net,
     // filters. `local` already holds the embedding stage.
     std::vector<float> denoiseEmbedded(FeatureMap embedding, float depthScale, const FrameInfo& info,
                                        const float* motion, const float* valid, DenoiseReport& local,
@@ -329,12 +329,13 @@ std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport
         throw Error("denoise: " + std::to_string(s.pending.spp) +
                     " samples added with addSamples() wait for finishFrame() (or discardSamples())");
 
-    // 1-2. Per-sample embedding averaged per pixel; noisy radiance.
+    // 1-2. Per-sample embedding averaged per pixel; the signal the kernels filter.
     const float depth = depthScale(frame);
     FeatureMap embedding = s.pool.take(height, width, net.embedding->outChannels());
+    s.sampleSums = s.pool.take(height, width, Embedding::kSampleSumChannels);
     local.invalidRadiance =
-        net.embedding->apply(frame.samples, height, width, frame.spp, depth, embedding, &s.radiance);
-    scale(s.radiance, 1.0f / float(frame.spp));
+        net.embedding->apply(frame.samples, height, width, frame.spp, depth, embedding, &s.sampleSums);
+    s.makeSignal(frame.spp);
     clock.mark("embedding");
     return s.denoiseEmbedded(std::move(embedding), depth, frame.info, frame.motion, frame.valid, local, clock,
                              report);
@@ -364,9 +365,10 @@ void Denoiser::addSamples(int width, int height, int spp, const float* samples) 
         p.invalidRadiance = 0;
         p.milliseconds = 0.0;
         p.hiddenSum = s.pool.take(height, width, net.embedding->hiddenChannels());
+        s.sampleSums = s.pool.take(height, width, Embedding::kSampleSumChannels);
     }
     p.invalidRadiance +=
-        net.embedding->accumulate(samples, height, width, spp, p.depthScale, p.hiddenSum, first, &s.radiance);
+        net.embedding->accumulate(samples, height, width, spp, p.depthScale, p.hiddenSum, first, &s.sampleSums);
     p.spp += spp;
     p.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
@@ -382,7 +384,7 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
     StageClock clock(local);
     FeatureMap embedding = s.pool.take(p.height, p.width, net.embedding->outChannels());
     net.embedding->finish(p.hiddenSum, p.spp, embedding);
-    scale(s.radiance, 1.0f / float(p.spp));
+    s.makeSignal(p.spp);
     local.invalidRadiance = p.invalidRadiance;
     const float depth = p.depthScale;
     s.pool.give(p.hiddenSum);
@@ -396,6 +398,12 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
 void Denoiser::discardSamples() {
     state_->pending.spp = 0;
     state_->pool.give(state_->pending.hiddenSum);
+    state_->pool.give(state_->sampleSums);
+}
+
+void Denoiser::State::makeSignal(int spp) {
+    makeFilterSignal(sampleSums, spp, model.network().albedoDemodulation, signal, albedo);
+    pool.give(sampleSums);
 }
 
 Denoiser::PendingFrame Denoiser::pending() const {
@@ -436,11 +444,11 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     if (history) {
         warpBilinear(s.embeddingHistory, motion, historyEmbedding);
         keepWhereValid(historyEmbedding, embedding, valid);
-        warpBilinear(s.radianceHistory, motion, s.historyRadiance);
-        keepWhereValid(s.historyRadiance, s.radiance, valid);
+        warpBilinear(s.signalHistory, motion, s.historySignal);
+        keepWhereValid(s.historySignal, s.signal, valid);
     } else {
         historyEmbedding = embedding;
-        s.historyRadiance = s.radiance;
+        s.historySignal = s.signal;
     }
     s.pool.give(s.embeddingHistory);  // read: its memory serves the U-Net
     clock.mark("warp history");
@@ -457,12 +465,13 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     blendInto(embedding, params.lambda, historyEmbedding);
     s.embeddingHistory = std::move(historyEmbedding);
     s.pool.give(embedding);
-    FeatureMap filterA = s.pool.take(height, width, 3), filterB = s.pool.take(height, width, 3);
-    blend(s.radiance, s.historyRadiance, params.lambda, filterA);
-    s.radianceHistory = filterA;
+    const int C = net.signalChannels();
+    FeatureMap filterA = s.pool.take(height, width, C), filterB = s.pool.take(height, width, C);
+    blend(s.signal, s.historySignal, params.lambda, filterA);
+    s.signalHistory = filterA;
     clock.mark("kernel parameters and accumulation");
 
-    // 6. Dilated spatial kernels on the accumulated radiance.
+    // 6. Dilated spatial kernels on the accumulated signal.
     FeatureMap* in = &filterA;
     FeatureMap* out = &filterB;
     for (int k = s.options.allKernels ? 0 : K - 1; k + 1 < K; ++k) {
@@ -472,7 +481,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     clock.mark("spatial kernels");
     // 7. The last kernel, with temporal taps on the warped previous output.
     if (history && s.options.temporalKernel) {
-        FeatureMap warpedOutput = s.pool.take(height, width, 3), validMap = s.pool.take(height, width, 1);
+        FeatureMap warpedOutput = s.pool.take(height, width, C), validMap = s.pool.take(height, width, 1);
         FeatureMap warpedFeatures = s.pool.take(height, width, F);
         warpBilinear(s.output, motion, warpedOutput);
         warpBilinear(s.lastFeatures, motion, warpedFeatures);
@@ -492,8 +501,10 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     s.hasHistory = true;
     clock.mark("temporal kernel");
 
+    std::vector<float> radiance(std::size_t(width) * std::size_t(height) * 3);
+    radianceFromSignal(s.output, s.albedo, radiance.data());
     if (report) *report = local;
-    return std::vector<float>(s.output.data(), s.output.data() + s.output.size());
+    return radiance;
 }
 
 }  // namespace affinity

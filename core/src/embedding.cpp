@@ -1,6 +1,7 @@
 #include "embedding.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 #include <string>
 
@@ -18,13 +19,19 @@ constexpr int kRadianceChannels = 6;  // diffuse and specular, in front of the o
 static_assert(channel::kDiffuse == 0 && channel::kSpecular == 3, "radiance leads the sample");
 
 // The input transform of MODEL.md section 1 for `count` consecutive samples, first half:
-// copies them into `input` ([count][18]) and their radiance, non-finite and negative values
-// read as 0, into `radiance` ([count][6], contiguous so that the loop vectorises). Returns how
-// many radiance values were non-finite or negative.
+// copies them into `input` ([count][18]), non-finite values read as 0, and their radiance,
+// non-finite and negative values read as 0, into `radiance` ([count][6], contiguous so that the
+// loop vectorises). Returns how many radiance values were non-finite or negative.
 long long sanitiseSamples(const float* samples, int count, float* input, float* radiance) {
-    std::memcpy(input, samples, std::size_t(count) * kFeatureCount * sizeof(float));
+    // Every feature: non-finite values read as 0 (the radiance is then checked and counted below).
+    const int values = count * kFeatureCount;
+#pragma omp simd
+    for (int i = 0; i < values; ++i) {
+        const float v = samples[i];
+        input[i] = std::fabs(v) <= 3.40282347e38f ? v : 0.0f;  // false for NaN and +-Inf
+    }
     for (int s = 0; s < count; ++s)
-        std::memcpy(radiance + std::size_t(s) * kRadianceChannels, input + std::size_t(s) * kFeatureCount,
+        std::memcpy(radiance + std::size_t(s) * kRadianceChannels, samples + std::size_t(s) * kFeatureCount,
                     kRadianceChannels * sizeof(float));
     const int n = count * kRadianceChannels;
     int bad = 0;
@@ -51,15 +58,23 @@ void compressSamples(int count, float depthScale, float* input, float* radiance)
     }
 }
 
-// Adds each of `pixels` pixels' sanitised radiance (diffuse + specular, over its spp samples in
-// order) to `sums` ([pixels][3]), starting from 0 when `first`.
-void sumRadiance(const float* radiance, int pixels, int spp, bool first, float* sums) {
+// Adds each of `pixels` pixels' sanitised diffuse, specular (from `radiance`) and albedo (from
+// the raw `samples`), over its spp samples in order, to `sums` ([pixels][9]), starting from 0
+// when `first`.
+void addSampleSums(const float* samples, const float* radiance, int pixels, int spp, bool first, float* sums) {
+    constexpr int kSums = Embedding::kSampleSumChannels;
     for (int p = 0; p < pixels; ++p) {
-        float* o = sums + std::size_t(p) * 3;
-        if (first) o[0] = o[1] = o[2] = 0.0f;
+        float* o = sums + std::size_t(p) * kSums;
+        if (first) std::fill(o, o + kSums, 0.0f);
         for (int s = 0; s < spp; ++s) {
-            const float* r = radiance + (std::size_t(p) * spp + std::size_t(s)) * kRadianceChannels;
-            for (int c = 0; c < 3; ++c) o[c] += r[c] + r[3 + c];
+            const std::size_t sample = std::size_t(p) * spp + std::size_t(s);
+            const float* r = radiance + sample * kRadianceChannels;
+            for (int c = 0; c < kRadianceChannels; ++c) o[c] += r[c];
+            const float* albedo = samples + sample * kFeatureCount + channel::kAlbedo;
+            for (int c = 0; c < 3; ++c) {
+                const float a = albedo[c];
+                o[kRadianceChannels + c] += a > 0.0f && a <= 3.40282347e38f ? a : 0.0f;  // false for NaN
+            }
         }
     }
 }
@@ -95,7 +110,7 @@ int Embedding::hiddenChannels() const {
 
 template <class Consume>
 long long Embedding::forEachChunk(const float* samples, long long pixels, int spp, float depthScale,
-                                  FeatureMap* radianceSum, bool firstRadiance, Consume consume) const {
+                                  FeatureMap* sampleSums, bool firstSums, Consume consume) const {
     const int chunkPixels = std::max(1, kChunkSamples / spp);
     const int chunkSamples = chunkPixels * spp;
     const long long chunks = (pixels + chunkPixels - 1) / chunkPixels;
@@ -115,9 +130,11 @@ long long Embedding::forEachChunk(const float* samples, long long pixels, int sp
             const long long p0 = chunk * chunkPixels;
             const int count = int(std::min<long long>(chunkPixels, pixels - p0));
             const int n = count * spp;
-            bad += sanitiseSamples(samples + std::size_t(p0) * spp * kFeatureCount, n, input.data(), radiance.data());
-            if (radianceSum)
-                sumRadiance(radiance.data(), count, spp, firstRadiance, radianceSum->data() + std::size_t(p0) * 3);
+            const float* chunkInput = samples + std::size_t(p0) * spp * kFeatureCount;
+            bad += sanitiseSamples(chunkInput, n, input.data(), radiance.data());
+            if (sampleSums)
+                addSampleSums(chunkInput, radiance.data(), count, spp, firstSums,
+                              sampleSums->data() + std::size_t(p0) * kSampleSumChannels);
             compressSamples(n, depthScale, input.data(), radiance.data());
 
             // Hidden layers per sample; `source` is what feeds the next layer.
@@ -135,12 +152,12 @@ long long Embedding::forEachChunk(const float* samples, long long pixels, int sp
 }
 
 long long Embedding::apply(const float* samples, int height, int width, int spp, float depthScale,
-                           FeatureMap& output, FeatureMap* radianceSum) const {
+                           FeatureMap& output, FeatureMap* sampleSums) const {
     if (height < 0 || width < 0 || spp <= 0)
         throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
                     std::to_string(spp) + " samples per pixel");
     output.resize(height, width, outChannels());
-    if (radianceSum) radianceSum->resize(height, width, 3);
+    if (sampleSums) sampleSums->resize(height, width, kSampleSumChannels);
     const long long pixels = (long long)height * width;
     if (pixels == 0) return 0;
 
@@ -149,7 +166,7 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
     // per sample (the same function up to float rounding, and S times fewer operations there).
     const int channels = hiddenChannels();
     const float inverseSpp = 1.0f / float(spp);
-    return forEachChunk(samples, pixels, spp, depthScale, radianceSum, true,
+    return forEachChunk(samples, pixels, spp, depthScale, sampleSums, true,
                         [&](long long p0, int count, const float* hidden, float* mean) {
                             // Mean over each pixel's samples, in sample order.
                             for (int p = 0; p < count; ++p) {
@@ -171,24 +188,24 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
 }
 
 long long Embedding::accumulate(const float* samples, int height, int width, int spp, float depthScale,
-                                FeatureMap& hiddenSum, bool first, FeatureMap* radianceSum) const {
+                                FeatureMap& hiddenSum, bool first, FeatureMap* sampleSums) const {
     if (height < 0 || width < 0 || spp <= 0)
         throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
                     std::to_string(spp) + " samples per pixel");
     const int channels = hiddenChannels();
     if (first) {
         hiddenSum.resize(height, width, channels);
-        if (radianceSum) radianceSum->resize(height, width, 3);
+        if (sampleSums) sampleSums->resize(height, width, kSampleSumChannels);
     } else if (hiddenSum.height() != height || hiddenSum.width() != width || hiddenSum.channels() != channels ||
-               (radianceSum && (radianceSum->height() != height || radianceSum->width() != width ||
-                                radianceSum->channels() != 3))) {
+               (sampleSums && (sampleSums->height() != height || sampleSums->width() != width ||
+                               sampleSums->channels() != kSampleSumChannels))) {
         throw Error("Embedding: a batch of " + std::to_string(height) + "x" + std::to_string(width) +
                     " does not match the sums it is added to");
     }
     const long long pixels = (long long)height * width;
     if (pixels == 0) return 0;
     // The same additions in the same order as apply()'s mean, without the final scaling.
-    return forEachChunk(samples, pixels, spp, depthScale, radianceSum, first,
+    return forEachChunk(samples, pixels, spp, depthScale, sampleSums, first,
                         [&](long long p0, int count, const float* hidden, float*) {
                             for (int p = 0; p < count; ++p) {
                                 float* m = hiddenSum.data() + (std::size_t(p0) + std::size_t(p)) * channels;

@@ -21,24 +21,27 @@ public:
     explicit Embedding(std::vector<DenseLayer> layers);
     int outChannels() const;
 
+    // Per-pixel sums over the samples that apply() and accumulate() can write beside the
+    // embedding, without a second pass over the samples: sanitised diffuse RGB, specular RGB
+    // and albedo RGB (non-finite or negative values read as 0), added in sample order.
+    static constexpr int kSampleSumChannels = 9;
+
     // samples: [pixels][spp][kFeatureCount] raw features (frame layout); depthScale from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).
     // Non-finite or negative radiance is treated as 0; returns how many radiance values were.
-    // With `radianceSum`, also writes each pixel's sum over its samples of that radiance
-    // (diffuse + specular, 3 channels, added in sample order): the noisy radiance times spp,
-    // without a second pass over the samples.
+    // With `sampleSums`, also writes the sums above (height x width x kSampleSumChannels).
     // Multithreaded; the result does not depend on the thread count.
     long long apply(const float* samples, int height, int width, int spp, float depthScale,
-                    FeatureMap& output, FeatureMap* radianceSum = nullptr) const;
+                    FeatureMap& output, FeatureMap* sampleSums = nullptr) const;
 
     // apply() in two steps, for samples that arrive in batches: accumulate() adds each sample's
     // output of all layers but the last to `hiddenSum` (height x width x hiddenChannels(),
-    // started afresh when `first`; likewise the radiance sums), finish() applies the last layer
+    // started afresh when `first`; likewise the sample sums), finish() applies the last layer
     // to hiddenSum / spp. Batches
     // added in sample order give apply()'s result bit for bit (the last layer is linear, so the
     // mean can be taken before it). accumulate() returns the bad radiance count as apply().
     long long accumulate(const float* samples, int height, int width, int spp, float depthScale,
-                         FeatureMap& hiddenSum, bool first, FeatureMap* radianceSum = nullptr) const;
+                         FeatureMap& hiddenSum, bool first, FeatureMap* sampleSums = nullptr) const;
     void finish(const FeatureMap& hiddenSum, int spp, FeatureMap& output) const;
     int hiddenChannels() const;
 
@@ -47,11 +50,10 @@ private:
     // consume(firstPixel, pixelCount, hidden, scratch) per chunk with hidden = the chunk's
     // per-sample outputs ([pixel][sample][hiddenChannels()]) and a per-thread scratch buffer of
     // chunkPixels x max(hiddenChannels(), kFeatureCount) floats.
-    // When radianceSum is given, the chunk's radiance sums go into it (started at 0 if
-    // firstRadiance).
+    // When sampleSums is given, the chunk's sums go into it (started at 0 if firstSums).
     template <class Consume>
     long long forEachChunk(const float* samples, long long pixels, int spp, float depthScale,
-                           FeatureMap* radianceSum, bool firstRadiance, Consume consume) const;
+                           FeatureMap* sampleSums, bool firstSums, Consume consume) const;
 
     std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples
     int widest_ = 0;                  // most outputs of any layer

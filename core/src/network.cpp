@@ -107,6 +107,8 @@ Network buildNetwork(const Weights& weights) {
     n.affinityFeatures = b.config("config.affinity_features", 1, 64);
     n.tapSize = b.config("config.kernel_size", 1, 15);
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
+    // Optional: models written before albedo demodulation existed filter radiance.
+    if (weights.has("config.albedo_demodulation")) n.albedoDemodulation = b.config("config.albedo_demodulation", 0, 1) == 1;
 
     std::vector<DenseLayer> dense = b.embedding();
     n.embeddingWidths.push_back(dense.front().in);

@@ -21,10 +21,13 @@ struct Network {
     std::vector<std::vector<Conv2d>> decoder;  // [level][conv], level 0 = full resolution
     std::optional<Conv2d> head;                // 1x1 convolution to headChannels()
     int kernels = 3, affinityFeatures = 8, tapSize = 5;
+    bool albedoDemodulation = false;  // the kernels filter diffuse / albedo and specular
     std::int64_t parameterCount = 0;
 
     // Head output channels: K (F + 2) + 2.
     int headChannels() const { return kernels * (affinityFeatures + 2) + 2; }
+    // Channels of the filtered signal (core/src/filter_signal.h).
+    int signalChannels() const { return albedoDemodulation ? 6 : 3; }
 };
 
 // Throws affinity::Error naming the source and the first inconsistency.

@@ -47,15 +47,16 @@ struct Scene {
 };
 
 // Features in [0, 1], a in [-2, 2] (so a^2 ||df||^2 stays in the range where weights are not
-// negligible), c in [0.05, 1], radiance in [0.01, 10]; validity 0, 1 or fractional.
-Scene randomScene(int height, int width, int features, std::mt19937& rng) {
+// negligible), c in [0.05, 1], the filtered signal in [0.01, 10] (3 channels of radiance, or 6
+// of demodulated diffuse and specular); validity 0, 1 or fractional.
+Scene randomScene(int height, int width, int features, std::mt19937& rng, int signalChannels = 3) {
     Scene s;
-    s.radiance = randomMap(height, width, 3, 0.01f, 10.0f, rng);
+    s.radiance = randomMap(height, width, signalChannels, 0.01f, 10.0f, rng);
     s.features = randomMap(height, width, features, 0.0f, 1.0f, rng);
     s.bandwidth = randomMap(height, width, 1, -2.0f, 2.0f, rng);
     s.centre = randomMap(height, width, 1, 0.05f, 1.0f, rng);
     s.temporalBandwidth = randomMap(height, width, 1, -2.0f, 2.0f, rng);
-    s.warpedOutput = randomMap(height, width, 3, 0.01f, 10.0f, rng);
+    s.warpedOutput = randomMap(height, width, signalChannels, 0.01f, 10.0f, rng);
     s.warpedFeatures = randomMap(height, width, features, 0.0f, 1.0f, rng);
     s.warpedValid = randomMap(height, width, 1, 0.0f, 1.0f, rng);
     for (std::size_t i = 0; i < s.warpedValid.size(); ++i) {
@@ -77,10 +78,12 @@ double squaredDistance(const FeatureMap& a, int ay, int ax, const FeatureMap& b,
 // docs/MODEL.md sections 6 and 7, literally, in double precision.
 FeatureMap reference(const Scene& s, int tapSize, int dilation, bool temporal) {
     const int height = s.radiance.height(), width = s.radiance.width(), radius = tapSize / 2;
-    FeatureMap out(height, width, 3);
+    const int channels = s.radiance.channels();
+    FeatureMap out(height, width, channels);
     for (int y = 0; y < height; ++y) {
         for (int x = 0; x < width; ++x) {
-            double sum[3] = {0, 0, 0}, weights = 0;
+            std::vector<double> sum(std::size_t(channels), 0.0);
+            double weights = 0;
             const double a = s.bandwidth.pixel(y, x)[0];
             for (int j = -radius; j <= radius; ++j) {
                 for (int i = -radius; i <= radius; ++i) {
@@ -89,7 +92,7 @@ FeatureMap reference(const Scene& s, int tapSize, int dilation, bool temporal) {
                     const double w = (i == 0 && j == 0)
                                          ? double(s.centre.pixel(y, x)[0])
                                          : std::exp(-a * a * squaredDistance(s.features, y, x, s.features, qy, qx));
-                    for (int c = 0; c < 3; ++c) sum[c] += w * s.radiance.pixel(qy, qx)[c];
+                    for (int c = 0; c < channels; ++c) sum[std::size_t(c)] += w * s.radiance.pixel(qy, qx)[c];
                     weights += w;
                 }
             }
@@ -101,12 +104,12 @@ FeatureMap reference(const Scene& s, int tapSize, int dilation, bool temporal) {
                         if (qx < 0 || qy < 0 || qx >= width || qy >= height) continue;
                         const double w = s.warpedValid.pixel(qy, qx)[0] *
                                          std::exp(-b * b * squaredDistance(s.features, y, x, s.warpedFeatures, qy, qx));
-                        for (int c = 0; c < 3; ++c) sum[c] += w * s.warpedOutput.pixel(qy, qx)[c];
+                        for (int c = 0; c < channels; ++c) sum[std::size_t(c)] += w * s.warpedOutput.pixel(qy, qx)[c];
                         weights += w;
                     }
                 }
             }
-            for (int c = 0; c < 3; ++c) out.pixel(y, x)[c] = float(sum[c] / (kEpsilon + weights));
+            for (int c = 0; c < channels; ++c) out.pixel(y, x)[c] = float(sum[std::size_t(c)] / (kEpsilon + weights));
         }
     }
     return out;
@@ -210,6 +213,32 @@ TEST(AffinityFilter, EveryFeatureCountMatchesReference) {
             }
         }
     }
+}
+
+TEST(AffinityFilter, DemodulatedSixChannelSignalMatchesReference) {
+    std::mt19937 rng(4);
+    for (const Size size : kSizes) {
+        for (const bool temporal : {false, true}) {
+            for (const int dilation : {1, 4}) {
+                const Scene s = randomScene(size.height, size.width, 8, rng, 6);
+                const double difference =
+                    maxRelativeDifference(run(s, 5, dilation, temporal), reference(s, 5, dilation, temporal));
+                EXPECT_LT(difference, 1e-5) << size.height << "x" << size.width << " temporal=" << temporal
+                                            << " d=" << dilation;
+            }
+        }
+    }
+    // Each channel is filtered with the same weights: the first three of a six-channel signal
+    // equal a three-channel run on them.
+    Scene six = randomScene(21, 70, 8, rng, 6);
+    Scene three = six;
+    three.radiance = FeatureMap(21, 70, 3);
+    for (int y = 0; y < 21; ++y)
+        for (int x = 0; x < 70; ++x) std::copy(six.radiance.pixel(y, x), six.radiance.pixel(y, x) + 3, three.radiance.pixel(y, x));
+    const FeatureMap outSix = run(six, 5, 2, false), outThree = run(three, 5, 2, false);
+    for (int y = 0; y < 21; ++y)
+        for (int x = 0; x < 70; ++x)
+            for (int c = 0; c < 3; ++c) ASSERT_EQ(outSix.pixel(y, x)[c], outThree.pixel(y, x)[c]);
 }
 
 TEST(AffinityFilter, ZeroBandwidthAndUnitCentreIsAnExactBoxFilter) {
@@ -387,6 +416,11 @@ TEST(AffinityFilter, RejectsInconsistentInputs) {
     const FeatureMap otherFeatures = randomMap(8, 9, 7, 0, 1, rng);
     EXPECT_THROW(affinityFilterTemporal(s.radiance, s.kernel(), 5, 1, s.temporalBandwidth, s.warpedOutput,
                                         otherFeatures, s.warpedValid, out),
+                 Error);
+    // A warped output in other channels than the signal (radiance beside a demodulated signal).
+    const FeatureMap sixChannels = randomMap(8, 9, 6, 0, 1, rng);
+    EXPECT_THROW(affinityFilterTemporal(sixChannels, s.kernel(), 5, 1, s.temporalBandwidth, s.warpedOutput,
+                                        s.warpedFeatures, s.warpedValid, out),
                  Error);
 }
 

@@ -16,6 +16,13 @@ Model randomModel(unsigned seed = 1, float lambdaBias = 0.0f, float temporalBias
     return Model::fromWeights(test::randomWeights(test::ModelShape{}, seed, lambdaBias, temporalBias));
 }
 
+// The same shape filtering demodulated diffuse and specular (core/src/filter_signal.h).
+Model randomModel(unsigned seed, bool albedoDemodulation) {
+    test::ModelShape shape;
+    shape.albedoDemodulation = albedoDemodulation;
+    return Model::fromWeights(test::randomWeights(shape, seed));
+}
+
 // A model that cannot see history: lambda = 0, the U-Net's history input channels zeroed and
 // (by default) a huge temporal bandwidth, which leaves no weight on the temporal taps.
 Model historyBlindModel(unsigned seed, float temporalBias = 1e4f) {
@@ -98,9 +105,12 @@ TEST(Denoiser, OutputDoesNotDependOnSampleOrder) {
                 for (int s = 0; s < f.spp() / 2; ++s)
                     std::swap_ranges(f.sample(x, y, s), f.sample(x, y, s) + kFeatureCount, f.sample(x, y, f.spp() - 1 - s));
             }
-    Denoiser a(randomModel()), b(randomModel());
-    for (std::size_t t = 0; t < frames.size(); ++t)
-        EXPECT_LT(maxRelativeDifference(a.denoise(frames[t]), b.denoise(permuted[t])), 1e-4) << "frame " << t;
+    for (const bool demodulated : {false, true}) {
+        Denoiser a(randomModel(1, demodulated)), b(randomModel(1, demodulated));
+        for (std::size_t t = 0; t < frames.size(); ++t)
+            EXPECT_LT(maxRelativeDifference(a.denoise(frames[t]), b.denoise(permuted[t])), 1e-4)
+                << "frame " << t << " demodulated " << demodulated;
+    }
 }
 
 TEST(Denoiser, ResetForgetsHistory) {
@@ -192,11 +202,13 @@ TEST(Denoiser, ReportsTheTimeOfEveryStage) {
 TEST(Denoiser, OddSizesWork) {
     for (auto [w, h] : {std::pair{1, 1}, {7, 13}, {13, 7}, {1, 9}, {17, 3}, {33, 19}}) {
         auto frames = test::randomSequence(2, w, h, 3, unsigned(w * 100 + h));
-        Denoiser denoiser(randomModel());
-        for (const SampleFrame& f : frames) {
-            std::vector<float> out = denoiser.denoise(f);
-            EXPECT_EQ(out.size(), std::size_t(w) * h * 3);
-            EXPECT_TRUE(allFinite(out)) << w << "x" << h;
+        for (const bool demodulated : {false, true}) {
+            Denoiser denoiser(randomModel(1, demodulated));
+            for (const SampleFrame& f : frames) {
+                std::vector<float> out = denoiser.denoise(f);
+                EXPECT_EQ(out.size(), std::size_t(w) * h * 3);
+                EXPECT_TRUE(allFinite(out)) << w << "x" << h << " demodulated " << demodulated;
+            }
         }
     }
 }
@@ -204,15 +216,17 @@ TEST(Denoiser, OddSizesWork) {
 TEST(Denoiser, ResultsDoNotDependOnThreadCount) {
     auto frames = test::randomSequence(2, 21, 15, 2, 8);
     const int threads = omp_get_max_threads();
-    omp_set_num_threads(1);
-    Denoiser one(randomModel());
-    std::vector<float> a0 = one.denoise(frames[0]), a1 = one.denoise(frames[1]);
-    omp_set_num_threads(std::max(2, threads));
-    Denoiser many(randomModel());
-    std::vector<float> b0 = many.denoise(frames[0]), b1 = many.denoise(frames[1]);
-    omp_set_num_threads(threads);
-    EXPECT_EQ(a0, b0);
-    EXPECT_EQ(a1, b1);
+    for (const bool demodulated : {false, true}) {
+        omp_set_num_threads(1);
+        Denoiser one(randomModel(1, demodulated));
+        std::vector<float> a0 = one.denoise(frames[0]), a1 = one.denoise(frames[1]);
+        omp_set_num_threads(std::max(2, threads));
+        Denoiser many(randomModel(1, demodulated));
+        std::vector<float> b0 = many.denoise(frames[0]), b1 = many.denoise(frames[1]);
+        omp_set_num_threads(threads);
+        EXPECT_EQ(a0, b0) << "demodulated " << demodulated;
+        EXPECT_EQ(a1, b1) << "demodulated " << demodulated;
+    }
 }
 
 TEST(Denoiser, BadRadianceGivesFiniteOutputAndAWarningCount) {
@@ -221,11 +235,16 @@ TEST(Denoiser, BadRadianceGivesFiniteOutputAndAWarningCount) {
     frames[1].sample(4, 4, 1)[channel::kSpecular + 2] = INFINITY;
     frames[1].sample(5, 1, 0)[channel::kDiffuse + 1] = -3.0f;
     frames[1].sample(0, 0, 1)[channel::kSpecular] = -INFINITY;
-    Denoiser denoiser(randomModel());
-    denoiser.denoise(frames[0]);
-    DenoiseReport report;
-    EXPECT_TRUE(allFinite(denoiser.denoise(frames[1], &report)));
-    EXPECT_EQ(report.invalidRadiance, 4);
+    // Bad albedo only matters to demodulation, where it reads as 0 (not counted: not radiance).
+    frames[1].sample(6, 2, 0)[channel::kAlbedo] = std::nanf("");
+    frames[1].sample(7, 2, 1)[channel::kAlbedo + 1] = -INFINITY;
+    for (const bool demodulated : {false, true}) {
+        Denoiser denoiser(randomModel(1, demodulated));
+        denoiser.denoise(frames[0]);
+        DenoiseReport report;
+        EXPECT_TRUE(allFinite(denoiser.denoise(frames[1], &report))) << "demodulated " << demodulated;
+        EXPECT_EQ(report.invalidRadiance, 4);
+    }
 }
 
 TEST(Denoiser, HistoryIsDroppedWhenTheSizeChangesOrTheCameraJumps) {
@@ -300,14 +319,17 @@ TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
             for (int x = 0; x < f.width(); ++x)
                 for (int s = 1; s < f.spp(); ++s) f.sample(x, y, s)[channel::kDepth] = f.sample(x, y, 0)[channel::kDepth];
     const std::vector<std::vector<int>> batchings = {{1, 1, 2}, {1, 1, 1, 1}, {4}};
-    Denoiser whole(randomModel(3)), stream(randomModel(3));
-    for (std::size_t t = 0; t < frames.size(); ++t) {
-        DenoiseReport report;
-        const std::vector<float> expected = whole.denoise(frames[t]);
-        EXPECT_EQ(streamed(stream, frames[t], batchings[t], &report), expected) << "frame " << t;
-        EXPECT_EQ(stream.pending().spp, 0);
-        EXPECT_EQ(report.usedHistory, t > 0);
-        EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
+    for (const bool demodulated : {false, true}) {
+        Denoiser whole(randomModel(3, demodulated)), stream(randomModel(3, demodulated));
+        for (std::size_t t = 0; t < frames.size(); ++t) {
+            DenoiseReport report;
+            const std::vector<float> expected = whole.denoise(frames[t]);
+            EXPECT_EQ(streamed(stream, frames[t], batchings[t], &report), expected)
+                << "frame " << t << " demodulated " << demodulated;
+            EXPECT_EQ(stream.pending().spp, 0);
+            EXPECT_EQ(report.usedHistory, t > 0);
+            EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
+        }
     }
 }
 

@@ -47,12 +47,39 @@ TEST(Parity, RandomWeightsOnRandomSequences) {
     }
 }
 
+TEST(Parity, AlbedoDemodulatedRandomWeights) {
+    test::ModelShape shape;
+    shape.albedoDemodulation = true;
+    for (unsigned seed : {3u, 4u}) {
+        const std::string path = temporaryPath("demodulated" + std::to_string(seed) + ".affw");
+        train::writeWeightsFile(path, test::randomModelTensors(shape, seed));
+        std::vector<SampleFrame> frames = test::randomSequence(4, 23, 17, 3, seed);
+        // Dark and black albedo too, where the demodulation floor applies, and non-finite
+        // features, which both sides read as 0.
+        for (SampleFrame& frame : frames) {
+            for (int s = 0; s < frame.spp(); ++s) {
+                frame.sample(0, 0, s)[channel::kAlbedo] = 0.0f;
+                frame.sample(1, 0, s)[channel::kAlbedo + 1] = 0.002f;
+            }
+            frame.sample(2, 0, 0)[channel::kAlbedo + 2] = INFINITY;
+            frame.sample(3, 0, 1)[channel::kNormal] = std::nanf("");
+            frame.sample(4, 0, 2)[channel::kRoughness] = -INFINITY;
+        }
+        expectParity(path, frames);
+        std::filesystem::remove(path);
+    }
+}
+
 TEST(Parity, EveryPresetAtInitialisation) {
     for (const std::string& preset : train::presetNames()) {
-        const std::string path = temporaryPath(preset + ".affw");
-        train::writeInitialModel(train::presetConfig(preset), 7, path);
-        expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
-        std::filesystem::remove(path);
+        for (bool demodulation : {false, true}) {
+            const std::string path = temporaryPath(preset + (demodulation ? "_demodulated" : "") + ".affw");
+            train::ModelConfig config = train::presetConfig(preset);
+            config.albedoDemodulation = demodulation;
+            train::writeInitialModel(config, 7, path);
+            expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
+            std::filesystem::remove(path);
+        }
     }
 }
 
