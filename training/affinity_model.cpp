@@ -151,11 +151,13 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     result.head = unet_(torch::cat({result.embedding, historyEmbedding}, 1));
     const int K = config_.kernels, F = config_.affinityFeatures;
     for (int k = 0; k < K; ++k) {
-        const std::int64_t base = std::int64_t(k) * (F + 2);
+        const std::int64_t base = std::int64_t(k) * config_.kernelChannels();
         result.kernels.push_back({result.head.narrow(1, base, F), result.head.narrow(1, base + F, 1),
-                                  torch::sigmoid(result.head.narrow(1, base + F + 1, 1))});
+                                  torch::sigmoid(result.head.narrow(1, base + F + 1, 1)),
+                                  config_.sourceWeights ? torch::sigmoid(result.head.narrow(1, base + F + 2, 1))
+                                                        : torch::Tensor()});
     }
-    const std::int64_t tail = std::int64_t(K) * (F + 2);
+    const std::int64_t tail = std::int64_t(K) * config_.kernelChannels();
     result.temporalBandwidth = result.head.narrow(1, tail, 1);
     result.lambda = torch::sigmoid(result.head.narrow(1, tail + 1, 1));
 

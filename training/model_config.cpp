@@ -164,6 +164,12 @@ ModelConfig configFromWeights(const Weights& weights) {
             throw Error(source + ": config.albedo_demodulation is " + str(demodulation) + ", expected 0 or 1");
         config.albedoDemodulation = demodulation == 1;
     }
+    if (weights.has("config.source_weights")) {
+        const int sourceWeights = readConfigInt(weights, "config.source_weights");
+        if (sourceWeights != 0 && sourceWeights != 1)
+            throw Error(source + ": config.source_weights is " + str(sourceWeights) + ", expected 0 or 1");
+        config.sourceWeights = sourceWeights == 1;
+    }
 
     for (int i = 0;; ++i) {
         const std::string name = "embed." + str(i) + ".weight";
@@ -196,7 +202,8 @@ ModelConfig configFromWeights(const Weights& weights) {
         if (view.shape != spec.shape) {
             throw Error(source + ": tensor " + spec.name + " has shape " + shapeText(view.shape) +
                         ", the model's structure needs " + shapeText(spec.shape) +
-                        " (head outputs P = K (F + 2) + 2 = " + str(config.headChannels()) + ")");
+                        " (head outputs P = K (F + " + str(config.kernelChannels() - config.affinityFeatures) +
+                        ") + 2 = " + str(config.headChannels()) + ")");
         }
     }
     for (const std::string& name : weights.names()) {
@@ -244,7 +251,7 @@ FlopCount flopCount(const ModelConfig& config) {
     // A neighbour tap: F differences, squares and sums, the bandwidth product, an exp, a
     // weighted multiply-add per filtered channel and the denominator.
     const int C = config.signalChannels();
-    const double tap = 3.0 * config.affinityFeatures + 4.0 + 2.0 * C;
+    const double tap = 3.0 * config.affinityFeatures + 4.0 + 2.0 * C + (config.sourceWeights ? 1.0 : 0.0);
     const double taps = double(config.kernelSize) * config.kernelSize - 1.0;
     flops.filterPerPixel = config.kernels * (taps * tap + 7.0 + 4.0) + 9.0 * tap;
     // Bilinear warps (8 per channel) of the embedding, radiance, output and features, the

@@ -28,12 +28,17 @@ struct ModelConfig {
     // Filter diffuse radiance divided by albedo (and specular as it is), then multiply the
     // albedo back (docs/MODEL.md section 6): texture detail need not survive the kernels.
     bool albedoDemodulation = false;
+    // Each kernel also weighs every pixel as a neighbour of others by a learned s in (0, 1)
+    // (docs/MODEL.md section 6): an outlier can be kept out of its neighbours' sums.
+    bool sourceWeights = false;
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
     // Channels the kernels filter: RGB radiance, or demodulated diffuse RGB + specular RGB.
     int signalChannels() const { return albedoDemodulation ? 6 : 3; }
-    // P = K (F + 2) + 2: per-kernel features, bandwidth, centre weight; temporal bandwidth, lambda.
-    int headChannels() const { return kernels * (affinityFeatures + 2) + 2; }
+    // Head channels per kernel: features, bandwidth, centre weight (and source weight).
+    int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
+    // P = K kernelChannels() + 2: the kernels' parameters; temporal bandwidth, lambda.
+    int headChannels() const { return kernels * kernelChannels() + 2; }
 };
 
 // Throws affinity::Error naming the first inconsistency (sizes < 1, even T, level counts).

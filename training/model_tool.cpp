@@ -74,7 +74,7 @@ int runDescribe(const std::vector<std::string>& args) {
               << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
     std::cout << "  filters        "
               << (config.albedoDemodulation ? "diffuse / albedo and specular (albedo demodulation)" : "radiance")
-              << "\n";
+              << (config.sourceWeights ? ", neighbours weighed by source weights" : "") << "\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];

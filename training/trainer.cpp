@@ -311,6 +311,7 @@ TrainSummary runTraining(const TrainOptions& options) {
     } else {
         ModelConfig config = presetConfig(options.preset);
         config.albedoDemodulation = options.albedoDemodulation;
+        config.sourceWeights = options.sourceWeights;
         model = makeModel(config, options.seed);
     }
     model->to(device);

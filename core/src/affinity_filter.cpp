@@ -134,8 +134,9 @@ private:
 struct RowInputs {
     int width;
     int features;
+    bool sourceWeights;          // an s plane follows c
     std::size_t stride;          // of the spatial rows
-    const float* centre;         // features, signal, a, c (and b when temporal) at row y
+    const float* centre;         // features, signal, a, c (s with source weights, b when temporal) at row y
     const float* const* taps;    // per tap row j = 0..T-1: features and signal, or null outside
     int tapSize;
     int dilation;
@@ -170,7 +171,8 @@ struct StripSums {
 
 // Adds one tap, the neighbour at the same offset for every pixel of the strip: `neighbour`
 // points at the features of the first pixel's neighbour, `column` is that neighbour's image
-// column, `signal` its kChannels filtered values, `validity` (temporal taps only) scales each
+// column, `signal` its kChannels filtered values, `validity` (the source weight s of a spatial
+// tap, or the validity of a temporal one; null for none) scales each
 // weight. kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
 template <int kFeatures, int kChannels, bool kCheckColumns>
 void addTaps(StripSums<kChannels>& sums, const Vec8f* negativeBandwidthSquared, const float* centre,
@@ -202,6 +204,8 @@ void filterStrip(const RowInputs& in, int x, float* output) {
     const float* centreSignal = centre + features * stride;
     const float* bandwidth = centre + (features + kChannels) * stride;
     const float* centreWeight = centre + (features + kChannels + 1) * stride;
+    // A neighbour's s plane lies this far after its features (none: every s is 1).
+    const std::ptrdiff_t sourceOffset = in.sourceWeights ? std::ptrdiff_t(features + kChannels + 2) * std::ptrdiff_t(stride) : 0;
 
     StripSums<kChannels> sums;
     Vec8f negativeBandwidthSquared[kStripVectors];
@@ -223,14 +227,15 @@ void filterStrip(const RowInputs& in, int x, float* output) {
             const int column = x + i * in.dilation;
             const float* neighbour = tapRow + column;
             addTaps<kFeatures, kChannels, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride, neighbour,
-                                                         stride, neighbour + features * stride, nullptr, features,
-                                                         column, in.width);
+                                                         stride, neighbour + features * stride,
+                                                         in.sourceWeights ? neighbour + sourceOffset : nullptr,
+                                                         features, column, in.width);
         }
     }
 
     if constexpr (kTemporal) {
         const std::size_t temporalStride = in.temporalStride;
-        const float* temporalBandwidth = centre + (features + kChannels + 2) * stride;
+        const float* temporalBandwidth = centre + (features + kChannels + (in.sourceWeights ? 3 : 2)) * stride;
         Vec8f negativeTemporalSquared[kStripVectors];
         for (int v = 0; v < kStripVectors; ++v) {
             const Vec8f b = load8(temporalBandwidth + v * kLanes);
@@ -331,6 +336,7 @@ void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tap
     checkMap(*kernel.features, "the features", height, width, features);
     checkMap(*kernel.bandwidth, "the bandwidth a", height, width, 1);
     checkMap(*kernel.centre, "the centre weight c", height, width, 1);
+    if (kernel.source != nullptr) checkMap(*kernel.source, "the source weight s", height, width, 1);
     if (temporal != nullptr) {
         checkMap(*temporal->bandwidth, "the temporal bandwidth b", height, width, 1);
         checkMap(*temporal->output, "the warped output", height, width, channels);
@@ -348,7 +354,7 @@ void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSi
 
     // Writing into a buffer that is also read would race between rows.
     const bool outputAliasesInput = &output == &radiance || &output == kernel.features ||
-                                    &output == kernel.bandwidth || &output == kernel.centre ||
+                                    &output == kernel.bandwidth || &output == kernel.centre || &output == kernel.source ||
                                     (temporal != nullptr && (&output == temporal->bandwidth || &output == temporal->output ||
                                                              &output == temporal->features || &output == temporal->valid));
     FeatureMap separate;
@@ -362,6 +368,7 @@ void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSi
     const int radius = tapSize / 2;
     const int pad = radius * dilation;
     std::vector<const FeatureMap*> spatialSources = {kernel.features, &radiance, kernel.bandwidth, kernel.centre};
+    if (kernel.source != nullptr) spatialSources.push_back(kernel.source);
     if (temporal != nullptr) spatialSources.push_back(temporal->bandwidth);
     const RowFunction filterRowFunction = temporal != nullptr ? rowFunctionFor<true>(features, radiance.channels())
                                                               : rowFunctionFor<false>(features, radiance.channels());
@@ -394,6 +401,7 @@ void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSi
             RowInputs in{};
             in.width = width;
             in.features = features;
+            in.sourceWeights = kernel.source != nullptr;
             in.stride = spatial.stride();
             in.centre = taps[std::size_t(radius)];
             in.taps = taps.data();

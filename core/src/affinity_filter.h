@@ -6,11 +6,13 @@
 namespace affinity {
 
 // Per-pixel parameters of one kernel: features f (F channels), bandwidth a, centre weight c
-// (already through its sigmoid). a and c are single-channel maps.
+// and, in models with source weights, the weight s of each pixel as a neighbour of others (c and
+// s already through their sigmoid; null s: 1 everywhere). a, c and s are single-channel maps.
 struct KernelParams {
     const FeatureMap* features;
     const FeatureMap* bandwidth;
     const FeatureMap* centre;
+    const FeatureMap* source = nullptr;
 };
 
 // One dilated spatial pass: output = normalised affinity-weighted sum of `radiance`, the

@@ -138,10 +138,12 @@ struct UnetTail {
 // The per-pixel parameters of the filters (docs/MODEL.md section 5).
 struct KernelMaps {
     std::vector<FeatureMap> features, bandwidth, centre;  // per kernel: F channels, 1, 1
+    std::vector<FeatureMap> source;                       // per kernel, 1 channel (models with source weights)
     FeatureMap temporalBandwidth, lambda;                 // 1 channel each
 
     KernelParams kernel(int k) const {
-        return KernelParams{&features[std::size_t(k)], &bandwidth[std::size_t(k)], &centre[std::size_t(k)]};
+        const std::size_t i = std::size_t(k);
+        return KernelParams{&features[i], &bandwidth[i], &centre[i], source.empty() ? nullptr : &source[i]};
     }
 };
 
@@ -262,7 +264,9 @@ KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail&
         maps.features.push_back(pool.take(rows, columns, F));
         maps.bandwidth.push_back(pool.take(rows, columns, 1));
         maps.centre.push_back(pool.take(rows, columns, 1));
+        if (net.sourceWeights) maps.source.push_back(pool.take(rows, columns, 1));
     }
+    const int P = net.kernelChannels();
     maps.temporalBandwidth = pool.take(rows, columns, 1);
     maps.lambda = pool.take(rows, columns, 1);
 
@@ -293,13 +297,14 @@ KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail&
             for (int x = x0; x < x1; ++x) {
                 const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
                 for (std::size_t k = 0; k < std::size_t(K); ++k) {
-                    const float* base = o + int(k) * (F + 2);
+                    const float* base = o + int(k) * P;
                     std::copy(base, base + F, maps.features[k].pixel(y, x));
                     maps.bandwidth[k].pixel(y, x)[0] = base[F];
                     maps.centre[k].pixel(y, x)[0] = sigmoid(base[F + 1]);
+                    if (!maps.source.empty()) maps.source[k].pixel(y, x)[0] = sigmoid(base[F + 2]);
                 }
-                maps.temporalBandwidth.pixel(y, x)[0] = o[K * (F + 2)];
-                maps.lambda.pixel(y, x)[0] = sigmoid(o[K * (F + 2) + 1]);
+                maps.temporalBandwidth.pixel(y, x)[0] = o[K * P];
+                maps.lambda.pixel(y, x)[0] = sigmoid(o[K * P + 1]);
             }
         }
     }
@@ -307,7 +312,7 @@ KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail&
 }
 
 void Denoiser::State::give(KernelMaps& maps) {
-    for (std::vector<FeatureMap>* list : {&maps.features, &maps.bandwidth, &maps.centre})
+    for (std::vector<FeatureMap>* list : {&maps.features, &maps.bandwidth, &maps.centre, &maps.source})
         for (FeatureMap& map : *list) pool.give(map);
     pool.give(maps.temporalBandwidth);
     pool.give(maps.lambda);

@@ -109,6 +109,7 @@ Network buildNetwork(const Weights& weights) {
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
     // Optional: models written before albedo demodulation existed filter radiance.
     if (weights.has("config.albedo_demodulation")) n.albedoDemodulation = b.config("config.albedo_demodulation", 0, 1) == 1;
+    if (weights.has("config.source_weights")) n.sourceWeights = b.config("config.source_weights", 0, 1) == 1;
 
     std::vector<DenseLayer> dense = b.embedding();
     n.embeddingWidths.push_back(dense.front().in);
@@ -134,8 +135,8 @@ Network buildNetwork(const Weights& weights) {
     n.head.emplace(b.conv("unet.head", channels, 1));
     if (n.head->outChannels() != n.headChannels())
         b.fail("'unet.head.weight' has " + std::to_string(n.head->outChannels()) + " outputs but K = " +
-               std::to_string(n.kernels) + ", F = " + std::to_string(n.affinityFeatures) + " needs " +
-               std::to_string(n.headChannels()));
+               std::to_string(n.kernels) + ", F = " + std::to_string(n.affinityFeatures) +
+               (n.sourceWeights ? " with source weights" : "") + " needs " + std::to_string(n.headChannels()));
     n.parameterCount = b.parameters();
     b.requireAllUsed();
     return n;

@@ -22,10 +22,13 @@ struct Network {
     std::optional<Conv2d> head;                // 1x1 convolution to headChannels()
     int kernels = 3, affinityFeatures = 8, tapSize = 5;
     bool albedoDemodulation = false;  // the kernels filter diffuse / albedo and specular
+    bool sourceWeights = false;       // each kernel weighs a neighbour q by a learned s(q)
     std::int64_t parameterCount = 0;
 
-    // Head output channels: K (F + 2) + 2.
-    int headChannels() const { return kernels * (affinityFeatures + 2) + 2; }
+    // Head channels per kernel: features, bandwidth, centre weight (and source weight).
+    int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
+    // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda).
+    int headChannels() const { return kernels * kernelChannels() + 2; }
     // Channels of the filtered signal (core/src/filter_signal.h).
     int signalChannels() const { return albedoDemodulation ? 6 : 3; }
 };

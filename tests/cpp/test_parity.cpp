@@ -47,10 +47,20 @@ TEST(Parity, RandomWeightsOnRandomSequences) {
     }
 }
 
-TEST(Parity, AlbedoDemodulatedRandomWeights) {
+TEST(Parity, SourceWeightedRandomWeights) {
     test::ModelShape shape;
-    shape.albedoDemodulation = true;
+    shape.sourceWeights = true;
+    const std::string path = temporaryPath("source_weights.affw");
+    train::writeWeightsFile(path, test::randomModelTensors(shape, 5));
+    expectParity(path, test::randomSequence(4, 23, 17, 3, 5));
+    std::filesystem::remove(path);
+}
+
+TEST(Parity, AlbedoDemodulatedRandomWeights) {
     for (unsigned seed : {3u, 4u}) {
+        test::ModelShape shape;
+        shape.albedoDemodulation = true;
+        shape.sourceWeights = seed == 4;
         const std::string path = temporaryPath("demodulated" + std::to_string(seed) + ".affw");
         train::writeWeightsFile(path, test::randomModelTensors(shape, seed));
         std::vector<SampleFrame> frames = test::randomSequence(4, 23, 17, 3, seed);
@@ -72,10 +82,11 @@ TEST(Parity, AlbedoDemodulatedRandomWeights) {
 
 TEST(Parity, EveryPresetAtInitialisation) {
     for (const std::string& preset : train::presetNames()) {
-        for (bool demodulation : {false, true}) {
-            const std::string path = temporaryPath(preset + (demodulation ? "_demodulated" : "") + ".affw");
+        for (int variant = 0; variant < 3; ++variant) {
+            const std::string path = temporaryPath(preset + std::to_string(variant) + ".affw");
             train::ModelConfig config = train::presetConfig(preset);
-            config.albedoDemodulation = demodulation;
+            config.albedoDemodulation = variant >= 1;
+            config.sourceWeights = variant == 2;
             train::writeInitialModel(config, 7, path);
             expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
             std::filesystem::remove(path);

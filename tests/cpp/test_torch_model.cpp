@@ -281,12 +281,14 @@ TEST(TorchOps, PoolingKeepsOddEdgesAndUpsamplingIsIntegerHalving) {
 torch::Tensor directFilter(const torch::Tensor& L, const KernelParams& k, int tapSize, int dilation,
                            const TemporalTaps* temporal) {
     const std::int64_t H = L.size(2), W = L.size(3), F = k.features.size(1), r = (tapSize - 1) / 2;
+    const std::int64_t C = L.size(1);
     torch::Tensor out = torch::zeros_like(L);
     for (std::int64_t y = 0; y < H; ++y)
         for (std::int64_t x = 0; x < W; ++x) {
-            double num[3] = {0, 0, 0}, den = 0;
+            std::vector<double> num(std::size_t(C), 0.0);
+            double den = 0;
             auto add = [&](double w, const torch::Tensor& image, std::int64_t qy, std::int64_t qx) {
-                for (int c = 0; c < 3; ++c) num[c] += w * image[0][c][qy][qx].item<double>();
+                for (std::int64_t c = 0; c < C; ++c) num[std::size_t(c)] += w * image[0][c][qy][qx].item<double>();
                 den += w;
             };
             const double a = k.bandwidth[0][0][y][x].item<double>();
@@ -302,6 +304,7 @@ torch::Tensor directFilter(const torch::Tensor& L, const KernelParams& k, int ta
                             d2 += d * d;
                         }
                         w = std::exp(-a * a * d2);
+                        if (k.source.defined()) w *= k.source[0][0][qy][qx].item<double>();
                     }
                     add(w, L, qy, qx);
                 }
@@ -320,7 +323,7 @@ torch::Tensor directFilter(const torch::Tensor& L, const KernelParams& k, int ta
                         add(temporal->valid[0][0][qy][qx].item<double>() * std::exp(-b * b * d2), temporal->output, qy, qx);
                     }
             }
-            for (int c = 0; c < 3; ++c) out[0][c][y][x] = num[c] / (1e-8 + den);
+            for (std::int64_t c = 0; c < C; ++c) out[0][c][y][x] = num[std::size_t(c)] / (1e-8 + den);
         }
     return out;
 }
@@ -331,31 +334,50 @@ struct FilterInputs {
     TemporalTaps temporal;
 };
 
-FilterInputs randomFilterInputs(std::int64_t H, std::int64_t W, std::int64_t F) {
+// C signal channels (3: radiance, 6: demodulated); with source weights s in (0, 1).
+FilterInputs randomFilterInputs(std::int64_t H, std::int64_t W, std::int64_t F, std::int64_t C = 3,
+                                bool sourceWeights = false) {
     const auto o = torch::TensorOptions().dtype(torch::kDouble);
     FilterInputs in;
-    in.radiance = leaf(torch::rand({1, 3, H, W}, o) * 2);
+    in.radiance = leaf(torch::rand({1, C, H, W}, o) * 2);
     in.kernel = {leaf(torch::randn({1, F, H, W}, o) * 0.5), leaf(torch::randn({1, 1, H, W}, o)),
-                 leaf(torch::rand({1, 1, H, W}, o))};
-    in.temporal = {leaf(torch::randn({1, 1, H, W}, o)), leaf(torch::rand({1, 3, H, W}, o) * 2),
+                 leaf(torch::rand({1, 1, H, W}, o)),
+                 sourceWeights ? leaf(torch::rand({1, 1, H, W}, o)) : torch::Tensor()};
+    in.temporal = {leaf(torch::randn({1, 1, H, W}, o)), leaf(torch::rand({1, C, H, W}, o) * 2),
                    leaf(torch::randn({1, F, H, W}, o) * 0.5), (torch::rand({1, 1, H, W}, o) < 0.7).to(torch::kDouble)};
     return in;
 }
 
 TEST(TorchOps, AffinityFiltersMatchTheFormulas) {
     torch::manual_seed(2);
-    const FilterInputs in = randomFilterInputs(7, 9, 3);
-    for (int dilation : {1, 2, 4, 8}) {
-        torch::NoGradGuard noGrad;
-        EXPECT_LT(maxAbsDiff(affinityFilter(in.radiance, in.kernel, 5, dilation),
-                             directFilter(in.radiance, in.kernel, 5, dilation, nullptr)),
-                  1e-12)
-            << dilation;
-        EXPECT_LT(maxAbsDiff(affinityFilterTemporal(in.radiance, in.kernel, 3, dilation, in.temporal),
-                             directFilter(in.radiance, in.kernel, 3, dilation, &in.temporal)),
-                  1e-12)
-            << dilation;
+    for (int variant = 0; variant < 3; ++variant) {
+        // Radiance; a demodulated six-channel signal; six channels with source weights.
+        const FilterInputs in = randomFilterInputs(7, 9, 3, variant == 0 ? 3 : 6, variant == 2);
+        for (int dilation : {1, 2, 4, 8}) {
+            torch::NoGradGuard noGrad;
+            EXPECT_LT(maxAbsDiff(affinityFilter(in.radiance, in.kernel, 5, dilation),
+                                 directFilter(in.radiance, in.kernel, 5, dilation, nullptr)),
+                      1e-12)
+                << dilation << " variant " << variant;
+            EXPECT_LT(maxAbsDiff(affinityFilterTemporal(in.radiance, in.kernel, 3, dilation, in.temporal),
+                                 directFilter(in.radiance, in.kernel, 3, dilation, &in.temporal)),
+                      1e-12)
+                << dilation << " variant " << variant;
+        }
     }
+}
+
+TEST(TorchOps, DemodulationIsUndoneExactlyWithoutFiltering) {
+    torch::Tensor samples = torch::rand({1, 3, 18, 4, 5}, torch::kDouble);
+    samples[0][0][10][0][0] = 0.0;  // black albedo in every sample of a pixel: the floor applies
+    samples[0][1][10][0][0] = 0.0;
+    samples[0][2][10][0][0] = 0.0;
+    const PreparedInputs prepared = prepareInputs(samples);
+    const torch::Tensor signal = filterSignal(prepared, true);
+    EXPECT_EQ(signal.size(1), 6);
+    EXPECT_LT(maxAbsDiff(signal[0][0][0][0], prepared.diffuse[0][0][0][0] / kDemodulationFloor), 1e-12);
+    EXPECT_LT(maxAbsDiff(radianceFromSignal(signal, prepared.albedo), prepared.radiance), 1e-12);
+    EXPECT_TRUE(torch::equal(filterSignal(prepared, false), prepared.radiance));
 }
 
 TEST(TorchOps, SanitisesRadianceAndScalesDepthPerFrame) {
@@ -525,6 +547,17 @@ TEST(TorchGradients, AffinityKernel) {
     expectGradientMatches(loss, in.kernel.centre, someIndices(in.kernel.centre.numel()), "affinity: centre");
 }
 
+TEST(TorchGradients, AffinityKernelWithSourceWeightsOnASixChannelSignal) {
+    torch::manual_seed(15);
+    const FilterInputs in = randomFilterInputs(6, 7, 3, 6, true);
+    const torch::Tensor weights = torch::randn({1, 6, 6, 7}, torch::kDouble);
+    auto loss = [&] { return (affinityFilterTemporal(in.radiance, in.kernel, 5, 2, in.temporal) * weights).sum(); };
+    expectGradientMatches(loss, in.radiance, someIndices(in.radiance.numel()), "source: signal");
+    expectGradientMatches(loss, in.kernel.features, someIndices(in.kernel.features.numel()), "source: features");
+    expectGradientMatches(loss, in.kernel.source, someIndices(in.kernel.source.numel()), "source: s");
+    expectGradientMatches(loss, in.temporal.output, someIndices(in.temporal.output.numel()), "source: warped output");
+}
+
 TEST(TorchGradients, TemporalKernel) {
     torch::manual_seed(13);
     const FilterInputs in = randomFilterInputs(6, 7, 3);
@@ -562,6 +595,33 @@ TEST(TorchGradients, WholePipelineOverTwoFrames) {
     std::vector<std::int64_t> sampleIndices;
     for (std::int64_t channel : {0, 4, 6, 9, 10, 13}) sampleIndices.push_back((18 + channel) * plane + 2 * 9 + 4);
     expectGradientMatches(loss, frames[0].samples, sampleIndices, "pipeline: frame 1 samples");
+}
+
+TEST(TorchGradients, DemodulatedPipelineWithSourceWeightsOverTwoFrames) {
+    ModelConfig config = presetConfig("tiny");
+    config.albedoDemodulation = true;
+    config.sourceWeights = true;
+    AffinityModel model = makeModel(config, 16);
+    model->to(torch::kDouble);
+    torch::manual_seed(16);
+    std::vector<FrameInput> frames = randomSequence(2, 2, 7, 9, torch::kDouble);
+    frames[1].valid.fill_(1.0);
+    frames[0].samples = leaf(frames[0].samples);
+    const std::vector<torch::Tensor> weights = {torch::randn({1, 3, 7, 9}, torch::kDouble),
+                                                torch::randn({1, 3, 7, 9}, torch::kDouble)};
+    auto loss = [&] {
+        const auto outputs = model->forwardSequence(frames);
+        return (outputs[0] * weights[0]).sum() + (outputs[1] * weights[1]).sum();
+    };
+    for (const std::string name : {"embed.0.weight", "unet.dec0.conv0.weight", "unet.head.weight", "unet.head.bias"}) {
+        const torch::Tensor p = parameter(model, name);
+        expectGradientMatches(loss, p, someIndices(p.numel(), 4), "demodulated pipeline: " + name);
+    }
+    // Diffuse, specular and albedo of frame 1 reach frame 2 through the demodulated histories.
+    const std::int64_t plane = 7 * 9;
+    std::vector<std::int64_t> sampleIndices;
+    for (std::int64_t channel : {0, 4, 10, 12}) sampleIndices.push_back((18 + channel) * plane + 2 * 9 + 4);
+    expectGradientMatches(loss, frames[0].samples, sampleIndices, "demodulated pipeline: frame 1 samples");
 }
 
 }  // namespace
