@@ -136,15 +136,18 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     result.invalidCount = prepared.invalidCount;
     result.embedding = embed(prepared.networkInput);
     const torch::Tensor signal = filterSignal(prepared, config_.albedoDemodulation);
+    // What the moving average accumulates: the signal, and with demodulation the albedo too, so
+    // that the albedo multiplied back is as steady as the light it multiplies.
+    const torch::Tensor current = config_.albedoDemodulation ? torch::cat({signal, prepared.albedo}, 1) : signal;
 
     // Section 3: histories (warped state where valid, the current frame elsewhere).
     torch::Tensor validMask = torch::zeros(validShape, options);
-    torch::Tensor historyEmbedding = result.embedding, historySignal = signal;
+    torch::Tensor historyEmbedding = result.embedding, historySignal = current;
     if (history) {
         validMask = (frame.valid.to(options) > 0.5).to(options);
         const torch::Tensor use = validMask > 0.5;
         historyEmbedding = torch::where(use, warpBilinear(state.embedding, motion), result.embedding);
-        historySignal = torch::where(use, warpBilinear(state.radiance, motion), signal);
+        historySignal = torch::where(use, warpBilinear(state.radiance, motion), current);
     }
 
     // Sections 4-5: U-Net and per-pixel parameters.
@@ -164,10 +167,11 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     // Section 3 (continued): the learned moving averages.
     const torch::Tensor& lambda = result.lambda;
     const torch::Tensor accumulatedEmbedding = (1 - lambda) * result.embedding + lambda * historyEmbedding;
-    result.accumulated = (1 - lambda) * signal + lambda * historySignal;
+    result.accumulated = (1 - lambda) * current + lambda * historySignal;
 
     // Section 6: dilated kernels 0..K-2; section 7: the last one, with temporal taps.
-    torch::Tensor filtered = result.accumulated;
+    const std::int64_t C = config_.signalChannels();
+    torch::Tensor filtered = result.accumulated.narrow(1, 0, C);
     for (int k = 0; k + 1 < K; ++k) {
         filtered = affinityFilter(filtered, result.kernels[std::size_t(k)], config_.kernelSize, 1 << k);
     }
@@ -179,7 +183,8 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     } else {
         filtered = affinityFilter(filtered, last, config_.kernelSize, 1 << (K - 1));
     }
-    result.output = radianceFromSignal(filtered, prepared.albedo);
+    result.output = radianceFromSignal(
+        filtered, config_.albedoDemodulation ? result.accumulated.narrow(1, C, 3) : torch::Tensor());
 
     state = {accumulatedEmbedding, result.accumulated, filtered, last.features};
     return result;

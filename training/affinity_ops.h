@@ -18,9 +18,9 @@ struct PreparedInputs {
 // samples: [B, S, 18, H, W] raw features. depthScale is computed per batch element (frame).
 PreparedInputs prepareInputs(const at::Tensor& samples);
 
-// Albedo below this divides (and multiplies) as this: a black surface reflects no diffuse light,
-// so nothing is lost, and the quotient stays bounded.
-inline constexpr double kDemodulationFloor = 0.01;
+// Albedo below this divides (and multiplies) as this: the quotient stays bounded (the core's
+// kDemodulationFloor in core/src/filter_signal.h says why 0.1).
+inline constexpr double kDemodulationFloor = 0.1;
 // What the kernels filter (docs/MODEL.md section 6): the radiance [B, 3, H, W], or with albedo
 // demodulation the diffuse radiance over max(albedo, floor) and the specular radiance [B, 6, H, W].
 at::Tensor filterSignal(const PreparedInputs& prepared, bool albedoDemodulation);

@@ -157,11 +157,11 @@ struct Denoiser::State {
     int lastWidth = 0, lastHeight = 0;
     Matrix4 lastWorldToCamera{};
     float lastMeanDepth = 0.0f;
-    // Temporal state (docs/MODEL.md sections 3 and 7): the output is the last kernel's, in the
-    // filtered signal's channels (filter_signal.h).
+    // Temporal state (docs/MODEL.md sections 3 and 7): the accumulated signal and the last
+    // kernel's output, in the filtered signal's channels (filter_signal.h).
     FeatureMap embeddingHistory, signalHistory, output, lastFeatures;
     // Every other map of a frame comes from the pool and goes back as soon as it is dead; the
-    // filtered signal, its warped history and the albedo (alive across the U-Net anyway) are
+    // signal, its warped history and the accumulated albedo (alive across the U-Net anyway) are
     // kept here.
     FeatureMapPool pool;
     FeatureMap signal, historySignal, albedo;
@@ -183,8 +183,8 @@ struct Denoiser::State {
     void runBlock(const std::vector<Conv2d>& block, std::size_t first, std::size_t end, FeatureMap& map);
     KernelMaps kernelParameters(const Network& net, const UnetTail& tail);
     void give(KernelMaps& maps);
-    // The filtered signal (and albedo) of a frame of `spp` samples from `sampleSums`, whose
-    // memory goes back to the pool.
+    // The signal to accumulate of a frame of `spp` samples from `sampleSums`, whose memory goes
+    // back to the pool.
     void makeSignal(int spp);
     // Everything after the embedding and the filtered signal (in `signal`): history, U-Net,
     // filters. `local` already holds the embedding stage.
@@ -407,7 +407,7 @@ void Denoiser::discardSamples() {
 }
 
 void Denoiser::State::makeSignal(int spp) {
-    makeFilterSignal(sampleSums, spp, model.network().albedoDemodulation, signal, albedo);
+    makeAccumulatedSignal(sampleSums, spp, model.network().albedoDemodulation, signal);
     pool.give(sampleSums);
 }
 
@@ -472,8 +472,8 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     s.pool.give(embedding);
     const int C = net.signalChannels();
     FeatureMap filterA = s.pool.take(height, width, C), filterB = s.pool.take(height, width, C);
-    blend(s.signal, s.historySignal, params.lambda, filterA);
-    s.signalHistory = filterA;
+    blend(s.signal, s.historySignal, params.lambda, s.signalHistory);
+    splitAccumulatedSignal(s.signalHistory, filterA, s.albedo);
     clock.mark("kernel parameters and accumulation");
 
     // 6. Dilated spatial kernels on the accumulated signal.

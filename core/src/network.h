@@ -29,8 +29,10 @@ struct Network {
     int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
     // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda).
     int headChannels() const { return kernels * kernelChannels() + 2; }
-    // Channels of the filtered signal (core/src/filter_signal.h).
+    // Channels of the filtered signal and of the accumulated one, which also holds the albedo
+    // (core/src/filter_signal.h).
     int signalChannels() const { return albedoDemodulation ? 6 : 3; }
+    int accumulatedChannels() const { return albedoDemodulation ? 9 : 3; }
 };
 
 // Throws affinity::Error naming the source and the first inconsistency.

@@ -85,8 +85,8 @@ FeatureMap sumsOf(const std::vector<std::vector<float>>& pixels) {
 
 TEST(FilterSignal, RadianceIsTheMeanOfDiffusePlusSpecular) {
     const FeatureMap sums = sumsOf({{2, 4, 6, 1, 1, 2, 1, 1, 1}});
-    FeatureMap signal, albedo;
-    makeFilterSignal(sums, 2, false, signal, albedo);
+    FeatureMap signal;
+    makeAccumulatedSignal(sums, 2, false, signal);
     ASSERT_EQ(signal.channels(), 3);
     EXPECT_FLOAT_EQ(signal.data()[0], 1.5f);
     EXPECT_FLOAT_EQ(signal.data()[1], 2.5f);
@@ -97,19 +97,20 @@ TEST(FilterSignal, DemodulationDividesTheDiffuseMeanByTheAlbedoMeanAboveTheFloor
     // Pixel 0: albedo 0.5 / 0.25 / 0.1 over 2 samples; pixel 1: black albedo (floor 0.01).
     const FeatureMap sums = sumsOf({{1.0f, 0.5f, 0.2f, 0.4f, 0.6f, 0.8f, 1.0f, 0.5f, 0.2f},
                                     {0.0f, 0.002f, 0.0f, 3.0f, 3.0f, 3.0f, 0.0f, 0.0f, 0.0f}});
-    FeatureMap signal, albedo;
-    makeFilterSignal(sums, 2, true, signal, albedo);
-    ASSERT_EQ(signal.channels(), 6);
+    FeatureMap signal;
+    makeAccumulatedSignal(sums, 2, true, signal);
+    ASSERT_EQ(signal.channels(), 9);
     const float* p0 = signal.pixel(0, 0);
     EXPECT_FLOAT_EQ(p0[0], 0.5f / 0.5f);
     EXPECT_FLOAT_EQ(p0[1], 0.25f / 0.25f);
     EXPECT_FLOAT_EQ(p0[2], 0.1f / 0.1f);
     EXPECT_FLOAT_EQ(p0[3], 0.2f);
     EXPECT_FLOAT_EQ(p0[5], 0.4f);
-    EXPECT_FLOAT_EQ(albedo.pixel(0, 0)[1], 0.25f);
+    EXPECT_FLOAT_EQ(p0[7], 0.25f);  // the albedo, accumulated beside the light
     const float* p1 = signal.pixel(0, 1);
     EXPECT_FLOAT_EQ(p1[1], 0.001f / kDemodulationFloor);
     EXPECT_FLOAT_EQ(p1[4], 1.5f);
+    EXPECT_FLOAT_EQ(p1[6], 0.0f);
 }
 
 TEST(FilterSignal, UnfilteredSignalGivesTheNoisyRadianceBack) {
@@ -119,10 +120,12 @@ TEST(FilterSignal, UnfilteredSignalGivesTheNoisyRadianceBack) {
     FeatureMap embedding, sums;
     oneLayerEmbedding().apply(samples.data(), height, width, spp, 1.0f, embedding, &sums);
     for (const bool demodulate : {false, true}) {
-        FeatureMap signal, albedo;
-        makeFilterSignal(sums, spp, demodulate, signal, albedo);
+        FeatureMap signal, filtered, albedo;
+        makeAccumulatedSignal(sums, spp, demodulate, signal);
+        splitAccumulatedSignal(signal, filtered, albedo);
+        ASSERT_EQ(filtered.channels(), demodulate ? 6 : 3);
         std::vector<float> radiance(std::size_t(height) * width * 3);
-        radianceFromSignal(signal, albedo, radiance.data());
+        radianceFromSignal(filtered, albedo, radiance.data());
         for (int p = 0; p < height * width; ++p)
             for (int c = 0; c < 3; ++c) {
                 const float* sum = sums.data() + p * 9;
@@ -134,9 +137,10 @@ TEST(FilterSignal, UnfilteredSignalGivesTheNoisyRadianceBack) {
 }
 
 TEST(FilterSignal, RejectsWrongChannelCounts) {
-    FeatureMap signal, albedo;
-    EXPECT_THROW(makeFilterSignal(FeatureMap(2, 2, 3), 1, false, signal, albedo), Error);
-    EXPECT_THROW(makeFilterSignal(FeatureMap(2, 2, 9), 0, false, signal, albedo), Error);
+    FeatureMap signal, filtered, albedo;
+    EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, 3), 1, false, signal), Error);
+    EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, 9), 0, false, signal), Error);
+    EXPECT_THROW(splitAccumulatedSignal(FeatureMap(2, 2, 6), filtered, albedo), Error);
     std::vector<float> out(12);
     EXPECT_THROW(radianceFromSignal(FeatureMap(2, 2, 6), FeatureMap(2, 3, 3), out.data()), Error);
 }
