@@ -131,14 +131,14 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
 
     FrameResult result;
     // Sections 1-2: sanitised inputs, per-sample embedding averaged per pixel.
-    PreparedInputs prepared = prepareInputs(samples);
+    PreparedInputs prepared = prepareInputs(samples, config_.emissionBypass);
     result.noisy = prepared.radiance;
     result.invalidCount = prepared.invalidCount;
     result.embedding = embed(prepared.networkInput);
-    const torch::Tensor signal = filterSignal(prepared, config_.albedoDemodulation);
-    // What the moving average accumulates: the signal, and with demodulation the albedo too, so
-    // that the albedo multiplied back is as steady as the light it multiplies.
-    const torch::Tensor current = config_.albedoDemodulation ? torch::cat({signal, prepared.albedo}, 1) : signal;
+    // What the moving average accumulates: the filtered signal, and the albedo (so that the albedo
+    // multiplied back is as steady as the light it multiplies) and bypassed emission if any.
+    const torch::Tensor current =
+        accumulatedSignal(prepared, config_.albedoDemodulation, config_.emissionBypass);
 
     // Section 3: histories (warped state where valid, the current frame elsewhere).
     torch::Tensor validMask = torch::zeros(validShape, options);
@@ -183,8 +183,9 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     } else {
         filtered = affinityFilter(filtered, last, config_.kernelSize, 1 << (K - 1));
     }
-    result.output = radianceFromSignal(
-        filtered, config_.albedoDemodulation ? result.accumulated.narrow(1, C, 3) : torch::Tensor());
+    const std::int64_t unfiltered = result.accumulated.size(1) - C;
+    result.output = radianceFromSignal(filtered, unfiltered > 0 ? result.accumulated.narrow(1, C, unfiltered) : torch::Tensor(),
+                                       config_.albedoDemodulation, config_.emissionBypass);
 
     state = {accumulatedEmbedding, result.accumulated, filtered, last.features};
     return result;

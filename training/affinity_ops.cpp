@@ -65,7 +65,7 @@ void checkImage(const at::Tensor& tensor, const char* what, std::int64_t channel
 
 }  // namespace
 
-PreparedInputs prepareInputs(const at::Tensor& samples) {
+PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass) {
     if (samples.dim() != 5 || samples.size(2) != kFeatureCount) {
         throw Error("prepareInputs: samples must be [B, S, 18, H, W]");
     }
@@ -97,18 +97,41 @@ PreparedInputs prepareInputs(const at::Tensor& samples) {
         at::cat({at::log1p(clean), finiteOrZero(samples.narrow(2, channel::kNormal, 3)), depth * scale,
                  finiteOrZero(samples.narrow(2, channel::kAlbedo, kFeatureCount - channel::kAlbedo))},
                 2);
-    return {networkInput, noisy, clean.narrow(2, 0, 3).mean(1), clean.narrow(2, 3, 3).mean(1), albedo, invalidCount};
+    PreparedInputs prepared{networkInput, noisy, {}, {}, {}, albedo, invalidCount};
+    if (emissionBypass) {
+        const at::Tensor emissive = finiteOrZero(samples.narrow(2, channel::kEmissive, 1)) > 0.5;
+        const at::Tensor filtered = at::where(emissive, 0.0, clean), bypassed = at::where(emissive, clean, 0.0);
+        prepared.diffuse = filtered.narrow(2, 0, 3).mean(1);
+        prepared.specular = filtered.narrow(2, 3, 3).mean(1);
+        prepared.emitted = (bypassed.narrow(2, 0, 3) + bypassed.narrow(2, 3, 3)).mean(1);
+    } else {
+        prepared.diffuse = clean.narrow(2, 0, 3).mean(1);
+        prepared.specular = clean.narrow(2, 3, 3).mean(1);
+    }
+    return prepared;
 }
 
-at::Tensor filterSignal(const PreparedInputs& prepared, bool albedoDemodulation) {
-    if (!albedoDemodulation) return prepared.radiance;
-    return at::cat({prepared.diffuse / prepared.albedo.clamp_min(kDemodulationFloor), prepared.specular}, 1);
+at::Tensor accumulatedSignal(const PreparedInputs& prepared, bool albedoDemodulation, bool emissionBypass) {
+    std::vector<at::Tensor> parts;
+    if (albedoDemodulation) {
+        parts = {prepared.diffuse / prepared.albedo.clamp_min(kDemodulationFloor), prepared.specular, prepared.albedo};
+    } else {
+        parts = {emissionBypass ? prepared.diffuse + prepared.specular : prepared.radiance};
+    }
+    if (emissionBypass) parts.push_back(prepared.emitted);
+    return parts.size() == 1 ? parts[0] : at::cat(parts, 1);
 }
 
-at::Tensor radianceFromSignal(const at::Tensor& signal, const at::Tensor& albedo) {
-    if (signal.size(1) == 3) return signal;
-    checkImage(signal, "a demodulated signal", 6);
-    return albedo.clamp_min(kDemodulationFloor) * signal.narrow(1, 0, 3) + signal.narrow(1, 3, 3);
+at::Tensor radianceFromSignal(const at::Tensor& filtered, const at::Tensor& unfiltered, bool albedoDemodulation,
+                              bool emissionBypass) {
+    checkImage(filtered, "the filtered signal", albedoDemodulation ? 6 : 3);
+    at::Tensor radiance = filtered;
+    if (albedoDemodulation) {
+        radiance = unfiltered.narrow(1, 0, 3).clamp_min(kDemodulationFloor) * filtered.narrow(1, 0, 3) +
+                   filtered.narrow(1, 3, 3);
+    }
+    if (emissionBypass) radiance = radiance + unfiltered.narrow(1, albedoDemodulation ? 3 : 0, 3);
+    return radiance;
 }
 
 at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {

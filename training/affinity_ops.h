@@ -10,22 +10,30 @@ namespace affinity::train {
 struct PreparedInputs {
     at::Tensor networkInput;    // [B, S, 18, H, W]
     at::Tensor radiance;        // [B, 3, H, W]: mean over samples of the sanitised radiance
-    at::Tensor diffuse;         // [B, 3, H, W]: its diffuse part
-    at::Tensor specular;        // [B, 3, H, W]: its specular part
+    // With emission bypass, the samples flagged emissive (an emitter or the sky seen directly or
+    // through mirrors) are not filtered: diffuse and specular are then the means of the other
+    // samples' parts (0 for the emissive ones), emitted the mean of the emissive ones' radiance.
+    at::Tensor diffuse;         // [B, 3, H, W]
+    at::Tensor specular;        // [B, 3, H, W]
+    at::Tensor emitted;         // [B, 3, H, W] with emission bypass, undefined without
     at::Tensor albedo;          // [B, 3, H, W]: mean albedo (non-finite or negative read as 0)
     at::Tensor invalidCount;    // [B] int64: radiance values that were non-finite or negative
 };
 // samples: [B, S, 18, H, W] raw features. depthScale is computed per batch element (frame).
-PreparedInputs prepareInputs(const at::Tensor& samples);
+PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass = false);
 
 // Albedo below this divides (and multiplies) as this: the quotient stays bounded (the core's
 // kDemodulationFloor in core/src/filter_signal.h says why 0.1).
 inline constexpr double kDemodulationFloor = 0.1;
-// What the kernels filter (docs/MODEL.md section 6): the radiance [B, 3, H, W], or with albedo
-// demodulation the diffuse radiance over max(albedo, floor) and the specular radiance [B, 6, H, W].
-at::Tensor filterSignal(const PreparedInputs& prepared, bool albedoDemodulation);
-// The inverse: radiance [B, 3, H, W] from a filtered signal and the frame's albedo.
-at::Tensor radianceFromSignal(const at::Tensor& signal, const at::Tensor& albedo);
+// What the moving average accumulates (docs/MODEL.md section 1), [B, C + extra, H, W]: first the
+// C channels the kernels filter (the radiance, or with albedo demodulation the diffuse radiance
+// over max(albedo, floor) and the specular radiance), then the albedo (demodulation) and the
+// emitted radiance (emission bypass), which are accumulated but not filtered.
+at::Tensor accumulatedSignal(const PreparedInputs& prepared, bool albedoDemodulation, bool emissionBypass);
+// Radiance [B, 3, H, W] from the filtered part [B, C, H, W] and the unfiltered rest of an
+// accumulated signal (albedo and/or emitted radiance; undefined when there is none).
+at::Tensor radianceFromSignal(const at::Tensor& filtered, const at::Tensor& unfiltered, bool albedoDemodulation,
+                              bool emissionBypass);
 
 // out(p) = bilinear lookup of `previous` at (x + motion_x, y + motion_y), pixel centres at
 // integer coordinates, taps outside the image clamped to the border. motion: [B, 2, H, W]

@@ -164,6 +164,12 @@ ModelConfig configFromWeights(const Weights& weights) {
             throw Error(source + ": config.albedo_demodulation is " + str(demodulation) + ", expected 0 or 1");
         config.albedoDemodulation = demodulation == 1;
     }
+    if (weights.has("config.emission_bypass")) {
+        const int bypass = readConfigInt(weights, "config.emission_bypass");
+        if (bypass != 0 && bypass != 1)
+            throw Error(source + ": config.emission_bypass is " + str(bypass) + ", expected 0 or 1");
+        config.emissionBypass = bypass == 1;
+    }
     if (weights.has("config.source_weights")) {
         const int sourceWeights = readConfigInt(weights, "config.source_weights");
         if (sourceWeights != 0 && sourceWeights != 1)
@@ -257,8 +263,10 @@ FlopCount flopCount(const ModelConfig& config) {
     // Bilinear warps (8 per channel) of the embedding, radiance, output and features, the
     // two moving averages (3 per channel), and demodulating and remodulating (2 per channel).
     const int E = config.embeddingChannels();
-    flops.filterPerPixel += 8.0 * (E + C + C + config.affinityFeatures) + 3.0 * (E + C);
+    const int A = config.accumulatedChannels();
+    flops.filterPerPixel += 8.0 * (E + A + C + config.affinityFeatures) + 3.0 * (E + A);
     if (config.albedoDemodulation) flops.filterPerPixel += 2.0 * 6.0;
+    if (config.emissionBypass) flops.filterPerPixel += 3.0;
     return flops;
 }
 

@@ -31,10 +31,18 @@ struct ModelConfig {
     // Each kernel also weighs every pixel as a neighbour of others by a learned s in (0, 1)
     // (docs/MODEL.md section 6): an outlier can be kept out of its neighbours' sums.
     bool sourceWeights = false;
+    // Samples flagged emissive (emitters and the sky, seen directly or through mirrors) bypass the
+    // kernels: their radiance is accumulated but not filtered, and added back (docs/MODEL.md
+    // section 1), so a light smaller than a pixel is not spread onto its neighbours.
+    bool emissionBypass = false;
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
     // Channels the kernels filter: RGB radiance, or demodulated diffuse RGB + specular RGB.
     int signalChannels() const { return albedoDemodulation ? 6 : 3; }
+    // What the moving average accumulates: the filtered channels, the albedo, bypassed emission.
+    int accumulatedChannels() const {
+        return signalChannels() + (albedoDemodulation ? 3 : 0) + (emissionBypass ? 3 : 0);
+    }
     // Head channels per kernel: features, bandwidth, centre weight (and source weight).
     int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
     // P = K kernelChannels() + 2: the kernels' parameters; temporal bandwidth, lambda.

@@ -74,7 +74,8 @@ int runDescribe(const std::vector<std::string>& args) {
               << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
     std::cout << "  filters        "
               << (config.albedoDemodulation ? "diffuse / albedo and specular (albedo demodulation)" : "radiance")
-              << (config.sourceWeights ? ", neighbours weighed by source weights" : "") << "\n";
+              << (config.sourceWeights ? ", neighbours weighed by source weights" : "")
+              << (config.emissionBypass ? ", emissive samples bypass the kernels" : "") << "\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];

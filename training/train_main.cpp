@@ -22,6 +22,7 @@ constexpr const char* kUsage =
     "  --init FILE.affw    start from these weights instead of a fresh model\n"
     "  --albedo-demodulation  a fresh model filters diffuse / albedo and specular (docs/MODEL.md)\n"
     "  --source-weights    a fresh model's kernels weigh each neighbour by a learned s (docs/MODEL.md)\n"
+    "  --emission-bypass   a fresh model leaves emissive samples unfiltered (docs/MODEL.md)\n"
     "  --steps N           total steps (default 1000); a resumed run continues up to N\n"
     "  --minutes M         stop this run after M minutes of wall time (default: no limit)\n"
     "  --batch B           crops per step (4)      --crop C      crop side (64)\n"
@@ -65,6 +66,10 @@ int main(int argc, char** argv) {
             }
             if (flag == "--source-weights") {
                 options.sourceWeights = true;
+                continue;
+            }
+            if (flag == "--emission-bypass") {
+                options.emissionBypass = true;
                 continue;
             }
             if (i + 1 >= args.size()) throw affinity::Error(flag + " needs a value");

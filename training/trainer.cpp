@@ -312,6 +312,7 @@ TrainSummary runTraining(const TrainOptions& options) {
         ModelConfig config = presetConfig(options.preset);
         config.albedoDemodulation = options.albedoDemodulation;
         config.sourceWeights = options.sourceWeights;
+        config.emissionBypass = options.emissionBypass;
         model = makeModel(config, options.seed);
     }
     model->to(device);

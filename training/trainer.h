@@ -15,6 +15,7 @@ struct TrainOptions {
     std::string initWeights;    // start from this weights file instead of a fresh preset model
     bool albedoDemodulation = false;  // a fresh preset model filters demodulated diffuse + specular
     bool sourceWeights = false;       // a fresh preset model's kernels weigh neighbours by s(q)
+    bool emissionBypass = false;      // a fresh preset model leaves emissive samples unfiltered
     std::uint64_t seed = 1;     // model initialisation and every random choice of the batches
     int steps = 1000;           // total optimisation steps (a resumed run continues up to this)
     double maxMinutes = 0;      // stop earlier after this much wall time in this run (0: no limit)

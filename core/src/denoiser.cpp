@@ -161,10 +161,10 @@ struct Denoiser::State {
     // kernel's output, in the filtered signal's channels (filter_signal.h).
     FeatureMap embeddingHistory, signalHistory, output, lastFeatures;
     // Every other map of a frame comes from the pool and goes back as soon as it is dead; the
-    // signal, its warped history and the accumulated albedo (alive across the U-Net anyway) are
-    // kept here.
+    // signal, its warped history and the accumulated unfiltered channels (alive across the U-Net
+    // anyway) are kept here.
     FeatureMapPool pool;
-    FeatureMap signal, historySignal, albedo;
+    FeatureMap signal, historySignal, unfiltered;
     FeatureMap sampleSums;  // Embedding's per-pixel sums, from the pool until the signal is made
     // A frame arriving in batches (addSamples): sums kept until finishFrame().
     struct Pending {
@@ -407,7 +407,7 @@ void Denoiser::discardSamples() {
 }
 
 void Denoiser::State::makeSignal(int spp) {
-    makeAccumulatedSignal(sampleSums, spp, model.network().albedoDemodulation, signal);
+    makeAccumulatedSignal(sampleSums, spp, model.network().signalLayout(), signal);
     pool.give(sampleSums);
 }
 
@@ -470,10 +470,11 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     blendInto(embedding, params.lambda, historyEmbedding);
     s.embeddingHistory = std::move(historyEmbedding);
     s.pool.give(embedding);
-    const int C = net.signalChannels();
+    const SignalLayout layout = net.signalLayout();
+    const int C = layout.filteredChannels();
     FeatureMap filterA = s.pool.take(height, width, C), filterB = s.pool.take(height, width, C);
     blend(s.signal, s.historySignal, params.lambda, s.signalHistory);
-    splitAccumulatedSignal(s.signalHistory, filterA, s.albedo);
+    splitAccumulatedSignal(s.signalHistory, layout, filterA, s.unfiltered);
     clock.mark("kernel parameters and accumulation");
 
     // 6. Dilated spatial kernels on the accumulated signal.
@@ -507,7 +508,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     clock.mark("temporal kernel");
 
     std::vector<float> radiance(std::size_t(width) * std::size_t(height) * 3);
-    radianceFromSignal(s.output, s.albedo, radiance.data());
+    radianceFromSignal(s.output, s.unfiltered, layout, radiance.data());
     if (report) *report = local;
     return radiance;
 }

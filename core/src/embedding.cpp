@@ -58,9 +58,9 @@ void compressSamples(int count, float depthScale, float* input, float* radiance)
     }
 }
 
-// Adds each of `pixels` pixels' sanitised diffuse, specular (from `radiance`) and albedo (from
-// the raw `samples`), over its spp samples in order, to `sums` ([pixels][9]), starting from 0
-// when `first`.
+// Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (radiance from the sanitised
+// `radiance`, albedo and emissive flag from the raw `samples`) over its spp samples in order to
+// `sums`, starting from 0 when `first`.
 void addSampleSums(const float* samples, const float* radiance, int pixels, int spp, bool first, float* sums) {
     constexpr int kSums = Embedding::kSampleSumChannels;
     for (int p = 0; p < pixels; ++p) {
@@ -69,11 +69,15 @@ void addSampleSums(const float* samples, const float* radiance, int pixels, int 
         for (int s = 0; s < spp; ++s) {
             const std::size_t sample = std::size_t(p) * spp + std::size_t(s);
             const float* r = radiance + sample * kRadianceChannels;
-            for (int c = 0; c < kRadianceChannels; ++c) o[c] += r[c];
-            const float* albedo = samples + sample * kFeatureCount + channel::kAlbedo;
+            const float* raw = samples + sample * kFeatureCount;
+            const bool emissive = raw[channel::kEmissive] > 0.5f;  // false for NaN
+            float* light = o + (emissive ? Embedding::kSumEmittedDiffuse : Embedding::kSumDiffuse);
+            for (int c = 0; c < 3; ++c) light[c] += r[c];
+            light = o + (emissive ? Embedding::kSumEmittedSpecular : Embedding::kSumSpecular);
+            for (int c = 0; c < 3; ++c) light[c] += r[3 + c];
             for (int c = 0; c < 3; ++c) {
-                const float a = albedo[c];
-                o[kRadianceChannels + c] += a > 0.0f && a <= 3.40282347e38f ? a : 0.0f;  // false for NaN
+                const float a = raw[channel::kAlbedo + c];
+                o[Embedding::kSumAlbedo + c] += a > 0.0f && a <= 3.40282347e38f ? a : 0.0f;  // false for NaN
             }
         }
     }

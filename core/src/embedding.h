@@ -22,9 +22,12 @@ public:
     int outChannels() const;
 
     // Per-pixel sums over the samples that apply() and accumulate() can write beside the
-    // embedding, without a second pass over the samples: sanitised diffuse RGB, specular RGB
-    // and albedo RGB (non-finite or negative values read as 0), added in sample order.
-    static constexpr int kSampleSumChannels = 9;
+    // embedding, without a second pass over the samples, added in sample order, of sanitised
+    // values (non-finite or negative read as 0): diffuse RGB and specular RGB of the samples not
+    // flagged emissive, albedo RGB of all, diffuse RGB and specular RGB of the emissive ones.
+    static constexpr int kSampleSumChannels = 15;
+    static constexpr int kSumDiffuse = 0, kSumSpecular = 3, kSumAlbedo = 6, kSumEmittedDiffuse = 9,
+                         kSumEmittedSpecular = 12;
 
     // samples: [pixels][spp][kFeatureCount] raw features (frame layout); depthScale from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).

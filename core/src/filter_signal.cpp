@@ -8,61 +8,76 @@
 
 namespace affinity {
 
-void makeAccumulatedSignal(const FeatureMap& sums, int spp, bool albedoDemodulation, FeatureMap& signal) {
+void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& layout, FeatureMap& signal) {
     if (sums.channels() != Embedding::kSampleSumChannels || spp < 1)
         throw Error("filter signal: needs " + std::to_string(Embedding::kSampleSumChannels) +
                     " sums over at least one sample");
-    signal.resize(sums.height(), sums.width(), albedoDemodulation ? 9 : 3);
+    signal.resize(sums.height(), sums.width(), layout.channels());
     const long long pixels = (long long)sums.pixelCount();
     const float count = float(spp);
     const int channels = signal.channels();
 #pragma omp parallel for schedule(static)
     for (long long p = 0; p < pixels; ++p) {
         const float* sum = sums.data() + std::size_t(p) * Embedding::kSampleSumChannels;
+        const float* diffuse = sum + Embedding::kSumDiffuse;
+        const float* specular = sum + Embedding::kSumSpecular;
+        const float* emittedDiffuse = sum + Embedding::kSumEmittedDiffuse;
+        const float* emittedSpecular = sum + Embedding::kSumEmittedSpecular;
         float* out = signal.data() + std::size_t(p) * channels;
-        if (!albedoDemodulation) {
-            for (int c = 0; c < 3; ++c) out[c] = (sum[c] + sum[3 + c]) / count;
-            continue;
-        }
         for (int c = 0; c < 3; ++c) {
-            const float albedo = sum[6 + c] / count;
-            out[c] = (sum[c] / count) / std::max(albedo, kDemodulationFloor);
-            out[3 + c] = sum[3 + c] / count;
-            out[6 + c] = albedo;
+            // Without bypass the emissive samples' light is filtered with the rest.
+            const float d = layout.emissionBypass ? diffuse[c] : diffuse[c] + emittedDiffuse[c];
+            const float s = layout.emissionBypass ? specular[c] : specular[c] + emittedSpecular[c];
+            if (layout.albedoDemodulation) {
+                const float albedo = sum[Embedding::kSumAlbedo + c] / count;
+                out[c] = (d / count) / std::max(albedo, kDemodulationFloor);
+                out[3 + c] = s / count;
+                out[6 + c] = albedo;
+            } else {
+                out[c] = (d + s) / count;
+            }
+            if (layout.emissionBypass) out[channels - 3 + c] = (emittedDiffuse[c] + emittedSpecular[c]) / count;
         }
     }
 }
 
-void splitAccumulatedSignal(const FeatureMap& accumulated, FeatureMap& filtered, FeatureMap& albedo) {
+void splitAccumulatedSignal(const FeatureMap& accumulated, const SignalLayout& layout, FeatureMap& filtered,
+                            FeatureMap& unfiltered) {
     const int channels = accumulated.channels();
-    if (channels != 3 && channels != 9)
-        throw Error("filter signal: an accumulated signal has 3 or 9 channels, not " + std::to_string(channels));
-    const int kept = channels == 9 ? 6 : 3;
+    if (channels != layout.channels())
+        throw Error("filter signal: an accumulated signal of " + std::to_string(channels) +
+                    " channels where the model accumulates " + std::to_string(layout.channels()));
+    const int kept = layout.filteredChannels(), rest = layout.unfilteredChannels();
     filtered.resize(accumulated.height(), accumulated.width(), kept);
-    if (channels == 9) albedo.resize(accumulated.height(), accumulated.width(), 3);
+    if (rest > 0) unfiltered.resize(accumulated.height(), accumulated.width(), rest);
     const long long pixels = (long long)accumulated.pixelCount();
 #pragma omp parallel for schedule(static)
     for (long long p = 0; p < pixels; ++p) {
         const float* in = accumulated.data() + std::size_t(p) * channels;
         std::copy(in, in + kept, filtered.data() + std::size_t(p) * kept);
-        if (channels == 9) std::copy(in + 6, in + 9, albedo.data() + std::size_t(p) * 3);
+        if (rest > 0) std::copy(in + kept, in + channels, unfiltered.data() + std::size_t(p) * rest);
     }
 }
 
-void radianceFromSignal(const FeatureMap& signal, const FeatureMap& albedo, float* out) {
-    const long long pixels = (long long)signal.pixelCount();
-    if (signal.channels() == 3) {
-        std::copy(signal.data(), signal.data() + signal.size(), out);
-        return;
-    }
-    if (signal.channels() != 6 || albedo.height() != signal.height() || albedo.width() != signal.width() ||
-        albedo.channels() != 3)
-        throw Error("filter signal: a demodulated signal needs 6 channels and the frame's 3-channel albedo");
+void radianceFromSignal(const FeatureMap& filtered, const FeatureMap& unfiltered, const SignalLayout& layout,
+                        float* out) {
+    const int kept = layout.filteredChannels(), rest = layout.unfilteredChannels();
+    const bool sizesMatch = rest == 0 || (unfiltered.height() == filtered.height() &&
+                                          unfiltered.width() == filtered.width() && unfiltered.channels() == rest);
+    if (filtered.channels() != kept || !sizesMatch)
+        throw Error("filter signal: radiance needs a filtered signal of " + std::to_string(kept) +
+                    " channels and an unfiltered part of " + std::to_string(rest) + " of the same size");
+    const long long pixels = (long long)filtered.pixelCount();
 #pragma omp parallel for schedule(static)
     for (long long p = 0; p < pixels; ++p) {
-        const float* s = signal.data() + std::size_t(p) * 6;
-        const float* a = albedo.data() + std::size_t(p) * 3;
-        for (int c = 0; c < 3; ++c) out[std::size_t(p) * 3 + c] = std::max(a[c], kDemodulationFloor) * s[c] + s[3 + c];
+        const float* f = filtered.data() + std::size_t(p) * kept;
+        const float* u = rest > 0 ? unfiltered.data() + std::size_t(p) * rest : nullptr;
+        float* o = out + std::size_t(p) * 3;
+        for (int c = 0; c < 3; ++c) {
+            float radiance = layout.albedoDemodulation ? std::max(u[c], kDemodulationFloor) * f[c] + f[3 + c] : f[c];
+            if (layout.emissionBypass) radiance += u[rest - 3 + c];
+            o[c] = radiance;
+        }
     }
 }
 

@@ -1,9 +1,10 @@
 #pragma once
-// What the denoiser accumulates over time and filters (docs/MODEL.md sections 1, 3, 6, 7): the
-// noisy radiance, or with albedo demodulation the diffuse radiance divided by the albedo, the
-// specular radiance and the albedo itself. The kernels filter the light; the albedo, only
-// accumulated, is multiplied back afterwards, so that texture detail need not survive the
-// kernels.
+// What the denoiser accumulates over time and filters (docs/MODEL.md sections 1, 3, 6, 7). The
+// accumulated signal holds first the channels the kernels filter - the noisy radiance, or with
+// albedo demodulation the diffuse radiance divided by the albedo and the specular radiance -
+// then channels that are only accumulated: the albedo, multiplied back after filtering so that
+// texture detail need not survive the kernels, and with emission bypass the radiance of
+// emissive samples, added back so that a light smaller than a pixel is not spread around.
 #include "feature_map.h"
 
 namespace affinity {
@@ -14,16 +15,28 @@ namespace affinity {
 // benchmark's fireflies scene against 1.1 without demodulation, docs/TRAINING.md).
 constexpr float kDemodulationFloor = 0.1f;
 
-// sums: Embedding's per-pixel sample sums (diffuse, specular, albedo) over `spp` samples.
-// signal: height x width x 3 (radiance) or x 9 (diffuse / max(albedo, floor), specular, albedo).
-void makeAccumulatedSignal(const FeatureMap& sums, int spp, bool albedoDemodulation, FeatureMap& signal);
+// Where each part sits in the accumulated signal of a model.
+struct SignalLayout {
+    bool albedoDemodulation = false;
+    bool emissionBypass = false;
 
-// The part of an accumulated signal the kernels filter (its first 3 or 6 channels) and, for a
-// demodulated one, its albedo (the last 3; `albedo` is left alone otherwise).
-void splitAccumulatedSignal(const FeatureMap& accumulated, FeatureMap& filtered, FeatureMap& albedo);
+    int filteredChannels() const { return albedoDemodulation ? 6 : 3; }
+    int unfilteredChannels() const { return (albedoDemodulation ? 3 : 0) + (emissionBypass ? 3 : 0); }
+    int channels() const { return filteredChannels() + unfilteredChannels(); }
+};
 
-// Radiance from a filtered signal: 3 channels as they are, 6 with the albedo multiplied back
-// onto the diffuse part. out: pixelCount() x 3 floats.
-void radianceFromSignal(const FeatureMap& signal, const FeatureMap& albedo, float* out);
+// sums: Embedding's per-pixel sample sums over `spp` samples. signal: height x width x
+// layout.channels().
+void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& layout, FeatureMap& signal);
+
+// The part of an accumulated signal the kernels filter and the part they do not (albedo, then
+// emitted radiance; left alone when the layout has none).
+void splitAccumulatedSignal(const FeatureMap& accumulated, const SignalLayout& layout, FeatureMap& filtered,
+                            FeatureMap& unfiltered);
+
+// Radiance from a filtered signal and the unfiltered part: the albedo multiplied back onto the
+// diffuse light, the emitted radiance added. out: pixelCount() x 3 floats.
+void radianceFromSignal(const FeatureMap& filtered, const FeatureMap& unfiltered, const SignalLayout& layout,
+                        float* out);
 
 }  // namespace affinity

@@ -110,6 +110,7 @@ Network buildNetwork(const Weights& weights) {
     // Optional: models written before albedo demodulation existed filter radiance.
     if (weights.has("config.albedo_demodulation")) n.albedoDemodulation = b.config("config.albedo_demodulation", 0, 1) == 1;
     if (weights.has("config.source_weights")) n.sourceWeights = b.config("config.source_weights", 0, 1) == 1;
+    if (weights.has("config.emission_bypass")) n.emissionBypass = b.config("config.emission_bypass", 0, 1) == 1;
 
     std::vector<DenseLayer> dense = b.embedding();
     n.embeddingWidths.push_back(dense.front().in);

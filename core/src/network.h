@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "embedding.h"
+#include "filter_signal.h"
 #include "unet_layers.h"
 
 namespace affinity {
@@ -23,16 +24,15 @@ struct Network {
     int kernels = 3, affinityFeatures = 8, tapSize = 5;
     bool albedoDemodulation = false;  // the kernels filter diffuse / albedo and specular
     bool sourceWeights = false;       // each kernel weighs a neighbour q by a learned s(q)
+    bool emissionBypass = false;      // emissive samples are accumulated but not filtered
     std::int64_t parameterCount = 0;
 
     // Head channels per kernel: features, bandwidth, centre weight (and source weight).
     int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
     // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda).
     int headChannels() const { return kernels * kernelChannels() + 2; }
-    // Channels of the filtered signal and of the accumulated one, which also holds the albedo
-    // (core/src/filter_signal.h).
-    int signalChannels() const { return albedoDemodulation ? 6 : 3; }
-    int accumulatedChannels() const { return albedoDemodulation ? 9 : 3; }
+    // Where the filtered and the only accumulated channels sit (core/src/filter_signal.h).
+    SignalLayout signalLayout() const { return SignalLayout{albedoDemodulation, emissionBypass}; }
 };
 
 // Throws affinity::Error naming the source and the first inconsistency.

@@ -19,6 +19,7 @@ struct ModelShape {
     int kernels = 3, affinityFeatures = 4, tapSize = 5;
     bool albedoDemodulation = false;
     bool sourceWeights = false;
+    bool emissionBypass = false;
 };
 
 inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shape, unsigned seed,
@@ -43,6 +44,7 @@ inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shap
     config("config.kernel_size", shape.tapSize);
     if (shape.albedoDemodulation) config("config.albedo_demodulation", 1);
     if (shape.sourceWeights) config("config.source_weights", 1);
+    if (shape.emissionBypass) config("config.emission_bypass", 1);
     int in = 18;
     for (std::size_t i = 0; i < shape.embedding.size(); ++i) {
         add("embed." + std::to_string(i) + ".weight", {shape.embedding[i], in}, in);

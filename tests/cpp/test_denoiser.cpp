@@ -16,10 +16,12 @@ Model randomModel(unsigned seed = 1, float lambdaBias = 0.0f, float temporalBias
     return Model::fromWeights(test::randomWeights(test::ModelShape{}, seed, lambdaBias, temporalBias));
 }
 
-// The same shape filtering demodulated diffuse and specular (core/src/filter_signal.h).
+// The same shape with every signal option: demodulated diffuse and specular filtered, emissive
+// samples bypassing the kernels (core/src/filter_signal.h).
 Model randomModel(unsigned seed, bool albedoDemodulation) {
     test::ModelShape shape;
     shape.albedoDemodulation = albedoDemodulation;
+    shape.emissionBypass = albedoDemodulation;
     return Model::fromWeights(test::randomWeights(shape, seed));
 }
 
@@ -110,6 +112,42 @@ TEST(Denoiser, OutputDoesNotDependOnSampleOrder) {
         for (std::size_t t = 0; t < frames.size(); ++t)
             EXPECT_LT(maxRelativeDifference(a.denoise(frames[t]), b.denoise(permuted[t])), 1e-4)
                 << "frame " << t << " demodulated " << demodulated;
+    }
+}
+
+// With emission bypass the light of emissive samples is never filtered: a pixel-sized lamp of
+// radiance 1000 keeps its light, and every other pixel's output stays a convex combination of
+// non-emissive radiance (at most 20 in these frames) in every frame. (The camera stands still:
+// moving, a pixel's history would rightly come from wherever its surface was.)
+TEST(Denoiser, EmissionBypassKeepsALampsLightOffItsNeighbours) {
+    auto frames = test::randomSequence(3, 15, 11, 2, 31);
+    for (SampleFrame& f : frames)
+        for (int y = 0; y < f.height(); ++y)
+            for (int x = 0; x < f.width(); ++x) {
+                f.motion(x, y)[0] = f.motion(x, y)[1] = 0.0f;
+                for (int s = 0; s < f.spp(); ++s) {
+                    float* sample = f.sample(x, y, s);
+                    const bool lamp = x == 7 && y == 5;
+                    sample[channel::kEmissive] = lamp ? 1.0f : 0.0f;
+                    if (lamp)
+                        for (int c = 0; c < 6; ++c) sample[c] = c < 3 ? 0.0f : 1000.0f;
+                }
+            }
+    // Without the bypass, the kernels average the lamp away with its neighbours.
+    Denoiser filtering(randomModel(2));
+    EXPECT_LT(filtering.denoise(frames[0])[(5 * 15 + 7) * 3 + 1], 500.0f);
+    Denoiser denoiser(randomModel(2, true));
+    for (const SampleFrame& frame : frames) {
+        const std::vector<float> out = denoiser.denoise(frame);
+        for (int y = 0; y < frame.height(); ++y)
+            for (int x = 0; x < frame.width(); ++x)
+                for (int c = 0; c < 3; ++c) {
+                    const float value = out[(std::size_t(y) * frame.width() + x) * 3 + c];
+                    if (x == 7 && y == 5)
+                        EXPECT_GE(value, 1000.0f * 0.999f);
+                    else
+                        EXPECT_LE(value, 20.0f) << x << ", " << y;
+                }
     }
 }
 

@@ -56,11 +56,12 @@ TEST(Parity, SourceWeightedRandomWeights) {
     std::filesystem::remove(path);
 }
 
-TEST(Parity, AlbedoDemodulatedRandomWeights) {
-    for (unsigned seed : {3u, 4u}) {
+TEST(Parity, AlbedoDemodulatedAndEmissionBypassingRandomWeights) {
+    for (unsigned seed : {3u, 4u, 6u}) {
         test::ModelShape shape;
-        shape.albedoDemodulation = true;
+        shape.albedoDemodulation = seed != 6;
         shape.sourceWeights = seed == 4;
+        shape.emissionBypass = seed != 3;
         const std::string path = temporaryPath("demodulated" + std::to_string(seed) + ".affw");
         train::writeWeightsFile(path, test::randomModelTensors(shape, seed));
         std::vector<SampleFrame> frames = test::randomSequence(4, 23, 17, 3, seed);
@@ -82,11 +83,12 @@ TEST(Parity, AlbedoDemodulatedRandomWeights) {
 
 TEST(Parity, EveryPresetAtInitialisation) {
     for (const std::string& preset : train::presetNames()) {
-        for (int variant = 0; variant < 3; ++variant) {
+        for (int variant = 0; variant < 4; ++variant) {
             const std::string path = temporaryPath(preset + std::to_string(variant) + ".affw");
             train::ModelConfig config = train::presetConfig(preset);
-            config.albedoDemodulation = variant >= 1;
+            config.albedoDemodulation = variant == 1 || variant == 2;
             config.sourceWeights = variant == 2;
+            config.emissionBypass = variant >= 2;
             train::writeInitialModel(config, 7, path);
             expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
             std::filesystem::remove(path);

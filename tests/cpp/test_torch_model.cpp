@@ -367,17 +367,36 @@ TEST(TorchOps, AffinityFiltersMatchTheFormulas) {
     }
 }
 
-TEST(TorchOps, DemodulationIsUndoneExactlyWithoutFiltering) {
+TEST(TorchOps, DemodulationAndBypassAreUndoneExactlyWithoutFiltering) {
     torch::Tensor samples = torch::rand({1, 3, 18, 4, 5}, torch::kDouble);
     samples[0][0][10][0][0] = 0.0;  // black albedo in every sample of a pixel: the floor applies
     samples[0][1][10][0][0] = 0.0;
     samples[0][2][10][0][0] = 0.0;
-    const PreparedInputs prepared = prepareInputs(samples);
-    const torch::Tensor signal = filterSignal(prepared, true);
-    EXPECT_EQ(signal.size(1), 6);
-    EXPECT_LT(maxAbsDiff(signal[0][0][0][0], prepared.diffuse[0][0][0][0] / kDemodulationFloor), 1e-12);
-    EXPECT_LT(maxAbsDiff(radianceFromSignal(signal, prepared.albedo), prepared.radiance), 1e-12);
-    EXPECT_TRUE(torch::equal(filterSignal(prepared, false), prepared.radiance));
+    samples.narrow(2, 14, 1).copy_((torch::rand({1, 3, 1, 4, 5}, torch::kDouble) < 0.3).to(torch::kDouble));
+    for (int variant = 0; variant < 4; ++variant) {
+        const bool demodulation = variant & 1, bypass = variant & 2;
+        const PreparedInputs prepared = prepareInputs(samples, bypass);
+        const torch::Tensor signal = accumulatedSignal(prepared, demodulation, bypass);
+        const std::int64_t filtered = demodulation ? 6 : 3;
+        EXPECT_EQ(signal.size(1), filtered + (demodulation ? 3 : 0) + (bypass ? 3 : 0));
+        const torch::Tensor rest =
+            signal.size(1) > filtered ? signal.narrow(1, filtered, signal.size(1) - filtered) : torch::Tensor();
+        EXPECT_LT(maxAbsDiff(radianceFromSignal(signal.narrow(1, 0, filtered), rest, demodulation, bypass),
+                             prepared.radiance),
+                  1e-12)
+            << "variant " << variant;
+        if (demodulation) {
+            EXPECT_LT(maxAbsDiff(signal[0][0][0][0], prepared.diffuse[0][0][0][0] / kDemodulationFloor), 1e-12);
+        }
+        if (bypass) {
+            // Emissive samples are all in `emitted`, the others all in diffuse + specular.
+            const torch::Tensor emissive = samples.narrow(2, 14, 1) > 0.5;
+            const torch::Tensor light = samples.narrow(2, 0, 3) + samples.narrow(2, 3, 3);
+            EXPECT_LT(maxAbsDiff(prepared.emitted, torch::where(emissive, light, 0.0).mean(1)), 1e-12);
+            EXPECT_LT(maxAbsDiff(prepared.diffuse + prepared.specular, torch::where(emissive, 0.0, light).mean(1)),
+                      1e-12);
+        }
+    }
 }
 
 TEST(TorchOps, SanitisesRadianceAndScalesDepthPerFrame) {
