@@ -455,7 +455,8 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
         historyEmbedding = embedding;
         s.historySignal = s.signal;
     }
-    s.pool.give(s.embeddingHistory);  // read: its memory serves the U-Net
+    s.pool.give(s.embeddingHistory);  // read: their memory serves the U-Net
+    s.pool.give(s.signalHistory);
     clock.mark("warp history");
 
     // 4-5. U-Net and per-pixel parameters.
@@ -473,6 +474,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     const SignalLayout layout = net.signalLayout();
     const int C = layout.filteredChannels();
     FeatureMap filterA = s.pool.take(height, width, C), filterB = s.pool.take(height, width, C);
+    s.signalHistory = s.pool.take(height, width, s.signal.channels());
     blend(s.signal, s.historySignal, params.lambda, s.signalHistory);
     splitAccumulatedSignal(s.signalHistory, layout, filterA, s.unfiltered);
     clock.mark("kernel parameters and accumulation");
