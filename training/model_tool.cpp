@@ -1,5 +1,6 @@
 // affinity_model_tool: creates randomly initialised weights files and describes weights files.
-//   affinity_model_tool init --preset NAME --seed N --out FILE.affw
+//   affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]
+//       [--emission-bypass] [--source-weights]
 //   affinity_model_tool describe FILE.affw
 #include <cstdint>
 #include <cstdio>
@@ -16,7 +17,8 @@ namespace affinity::train {
 namespace {
 
 constexpr const char* kUsage =
-    "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw\n"
+    "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]\n"
+    "           [--emission-bypass] [--source-weights]   (the model options of docs/MODEL.md)\n"
     "       affinity_model_tool describe FILE.affw\n";
 
 std::string joined(const std::vector<int>& widths) {
@@ -28,8 +30,13 @@ std::string joined(const std::vector<int>& widths) {
 int runInit(const std::vector<std::string>& args) {
     std::string preset = "small", out;
     std::uint64_t seed = 0;
+    bool demodulation = false, bypass = false, sourceWeights = false;
     for (std::size_t i = 0; i < args.size(); ++i) {
         const std::string& flag = args[i];
+        if (flag == "--albedo-demodulation" || flag == "--emission-bypass" || flag == "--source-weights") {
+            (flag == "--albedo-demodulation" ? demodulation : flag == "--emission-bypass" ? bypass : sourceWeights) = true;
+            continue;
+        }
         if (i + 1 >= args.size()) throw Error("init: " + flag + " needs a value");
         const std::string& value = args[++i];
         if (flag == "--preset") {
@@ -51,7 +58,10 @@ int runInit(const std::vector<std::string>& args) {
         }
     }
     if (out.empty()) throw Error("init: --out FILE is required");
-    const ModelConfig config = presetConfig(preset);
+    ModelConfig config = presetConfig(preset);
+    config.albedoDemodulation = demodulation;
+    config.emissionBypass = bypass;
+    config.sourceWeights = sourceWeights;
     writeInitialModel(config, seed, out);
     std::cout << "wrote " << out << ": preset " << preset << ", seed " << seed << ", "
               << parameterCount(config) << " parameters\n";

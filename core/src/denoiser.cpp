@@ -5,9 +5,11 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstring>
 
 #include "affinity/error.h"
 #include "affinity_filter.h"
+#include "fast_exp.h"
 #include "feature_map_pool.h"
 #include "filter_signal.h"
 #include "network.h"
@@ -15,7 +17,17 @@
 namespace affinity {
 namespace {
 
-float sigmoid(float x) { return 1.0f / (1.0f + std::exp(-x)); }
+// Sigmoid in place on `count` contiguous values, eight at a time (the last group padded), so
+// every value goes through the same vector code whatever the tiling.
+void sigmoidInPlace(float* values, int count) {
+    for (int i = 0; i < count; i += 8) {
+        const int lanes = std::min(8, count - i);
+        Vec8f x{};
+        std::memcpy(&x, values + i, std::size_t(lanes) * sizeof(float));
+        const Vec8f y = fastSigmoid(x);
+        std::memcpy(values + i, &y, std::size_t(lanes) * sizeof(float));
+    }
+}
 
 // 1 / mean depth of the samples that hit something (docs/MODEL.md section 1). Rows are summed
 // in parallel and their sums added in row order, so the result does not depend on the threads.
@@ -294,18 +306,25 @@ KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail&
                           decoded.data());
             const ConvSource decodedRow{decoded.data(), last.outChannels()};
             head.applyRow(&decodedRow, 1, 1, columns, 0, x0, x1, Activation::None, params.data());
+            // Scatter the head's channels into the maps, then the sigmoids on each single-channel
+            // map's contiguous stretch of this tile.
             for (int x = x0; x < x1; ++x) {
                 const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
                 for (std::size_t k = 0; k < std::size_t(K); ++k) {
                     const float* base = o + int(k) * P;
                     std::copy(base, base + F, maps.features[k].pixel(y, x));
                     maps.bandwidth[k].pixel(y, x)[0] = base[F];
-                    maps.centre[k].pixel(y, x)[0] = sigmoid(base[F + 1]);
-                    if (!maps.source.empty()) maps.source[k].pixel(y, x)[0] = sigmoid(base[F + 2]);
+                    maps.centre[k].pixel(y, x)[0] = base[F + 1];
+                    if (!maps.source.empty()) maps.source[k].pixel(y, x)[0] = base[F + 2];
                 }
                 maps.temporalBandwidth.pixel(y, x)[0] = o[K * P];
-                maps.lambda.pixel(y, x)[0] = sigmoid(o[K * P + 1]);
+                maps.lambda.pixel(y, x)[0] = o[K * P + 1];
             }
+            for (std::size_t k = 0; k < std::size_t(K); ++k) {
+                sigmoidInPlace(maps.centre[k].pixel(y, x0), x1 - x0);
+                if (!maps.source.empty()) sigmoidInPlace(maps.source[k].pixel(y, x0), x1 - x0);
+            }
+            sigmoidInPlace(maps.lambda.pixel(y, x0), x1 - x0);
         }
     }
     return maps;

@@ -51,4 +51,13 @@ inline Vec8f fastExpNonPositive(Vec8f x) {
     return belowRange ? Vec8f{} : p * std::bit_cast<Vec8f>(scaleBits);
 }
 
+// 1 / (1 + exp(-x)) on eight lanes, through exp(-|x|) so that the exponential's argument is
+// never positive: for x < 0 it is exp(x) / (1 + exp(x)). Relative error about 3e-7.
+inline Vec8f fastSigmoid(Vec8f x) {
+    const Vec8f negativeMagnitude = std::bit_cast<Vec8f>(std::bit_cast<Vec8i>(x) | (Vec8i{} + INT32_MIN));  // -|x|
+    const Vec8f e = fastExpNonPositive(negativeMagnitude);
+    const Vec8f r = 1.0f / (1.0f + e);
+    return x >= 0.0f ? r : e * r;
+}
+
 }  // namespace affinity

@@ -168,6 +168,25 @@ TEST(FastExp, MaxRelativeErrorOnTheUsedRange) {
     EXPECT_EQ(fastExpNonPositive(broadcast8(-INFINITY))[0], 0.0f);
 }
 
+TEST(FastSigmoid, MaxRelativeErrorAndSymmetry) {
+    double worst = 0;
+    for (int k = -400000; k < 400000; k += 8) {
+        Vec8f x;
+        for (int l = 0; l < 8; ++l) x[l] = 1e-4f * float(k + l);  // [-40, 40]
+        const Vec8f y = fastSigmoid(x), mirrored = fastSigmoid(-x);
+        for (int l = 0; l < 8; ++l) {
+            const double exact = 1.0 / (1.0 + std::exp(-double(x[l])));
+            worst = std::max(worst, std::abs(double(y[l]) - exact) / exact);
+            EXPECT_NEAR(double(y[l]) + double(mirrored[l]), 1.0, 1e-6) << x[l];
+        }
+    }
+    std::printf("fastSigmoid: max relative error %.3g over [-40, 40]\n", worst);
+    EXPECT_LT(worst, 1e-6);
+    EXPECT_EQ(fastSigmoid(broadcast8(0.0f))[0], 0.5f);
+    EXPECT_EQ(fastSigmoid(broadcast8(1e30f))[0], 1.0f);
+    EXPECT_EQ(fastSigmoid(broadcast8(-1e30f))[0], 0.0f);
+}
+
 TEST(AffinityFilter, MatchesDoubleReference) {
     std::mt19937 rng(1);
     for (const Size size : kSizes) {
