@@ -198,7 +198,7 @@ struct Denoiser::State {
     // The signal to accumulate of a frame of `spp` samples from `sampleSums`, whose memory goes
     // back to the pool.
     void makeSignal(int spp);
-    // Everything after the embedding and the filtered signal (in `signal`): history, U-Net,
+    // Everything after the embedding and the signal to accumulate (in `signal`): history, U-Net,
     // filters. `local` already holds the embedding stage.
     std::vector<float> denoiseEmbedded(FeatureMap embedding, float depthScale, const FrameInfo& info,
                                        const float* motion, const float* valid, DenoiseReport& local,
@@ -278,7 +278,7 @@ KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail&
         maps.centre.push_back(pool.take(rows, columns, 1));
         if (net.sourceWeights) maps.source.push_back(pool.take(rows, columns, 1));
     }
-    const int P = net.kernelChannels();
+    const int G = net.kernelChannels();  // head channels per kernel (docs/MODEL.md section 5)
     maps.temporalBandwidth = pool.take(rows, columns, 1);
     maps.lambda = pool.take(rows, columns, 1);
 
@@ -311,14 +311,14 @@ KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail&
             for (int x = x0; x < x1; ++x) {
                 const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
                 for (std::size_t k = 0; k < std::size_t(K); ++k) {
-                    const float* base = o + int(k) * P;
+                    const float* base = o + int(k) * G;
                     std::copy(base, base + F, maps.features[k].pixel(y, x));
                     maps.bandwidth[k].pixel(y, x)[0] = base[F];
                     maps.centre[k].pixel(y, x)[0] = base[F + 1];
                     if (!maps.source.empty()) maps.source[k].pixel(y, x)[0] = base[F + 2];
                 }
-                maps.temporalBandwidth.pixel(y, x)[0] = o[K * P];
-                maps.lambda.pixel(y, x)[0] = o[K * P + 1];
+                maps.temporalBandwidth.pixel(y, x)[0] = o[K * G];
+                maps.lambda.pixel(y, x)[0] = o[K * G + 1];
             }
             for (std::size_t k = 0; k < std::size_t(K); ++k) {
                 sigmoidInPlace(maps.centre[k].pixel(y, x0), x1 - x0);
@@ -353,7 +353,7 @@ std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport
         throw Error("denoise: " + std::to_string(s.pending.spp) +
                     " samples added with addSamples() wait for finishFrame() (or discardSamples())");
 
-    // 1-2. Per-sample embedding averaged per pixel; the signal the kernels filter.
+    // 1-2. Per-sample embedding averaged per pixel; the signal to accumulate and filter.
     const float depth = depthScale(frame);
     FeatureMap embedding = s.pool.take(height, width, net.embedding->outChannels());
     s.sampleSums = s.pool.take(height, width, Embedding::kSampleSumChannels);
