@@ -171,20 +171,20 @@ struct StripSums {
 
 // Adds one tap, the neighbour at the same offset for every pixel of the strip: `neighbour`
 // points at the features of the first pixel's neighbour, `column` is that neighbour's image
-// column, `signal` its kChannels filtered values, `validity` (the source weight s of a spatial
-// tap, or the validity of a temporal one; null for none) scales each
-// weight. kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
+// column, `signal` its kChannels filtered values; `scale` (null for none) multiplies each
+// weight: the source weight s of a spatial tap, the validity of a temporal one.
+// kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
 template <int kFeatures, int kChannels, bool kCheckColumns>
 void addTaps(StripSums<kChannels>& sums, const Vec8f* negativeBandwidthSquared, const float* centre,
              std::size_t centreStride, const float* neighbour, std::size_t neighbourStride, const float* signal,
-             const float* validity, int features, int column, int width) {
+             const float* scale, int features, int column, int width) {
     const Vec8i lane = {0, 1, 2, 3, 4, 5, 6, 7};
     for (int v = 0; v < kStripVectors; ++v) {
         const int at = v * kLanes;
         const Vec8f distance =
             squaredDistance<kFeatures>(centre + at, neighbour + at, centreStride, neighbourStride, features);
         Vec8f weight = fastExpNonPositive(negativeBandwidthSquared[v] * distance);
-        if (validity != nullptr) weight *= load8(validity + at);
+        if (scale != nullptr) weight *= load8(scale + at);
         if constexpr (kCheckColumns) {
             const Vec8i columns = lane + (column + at);
             weight = ((columns >= 0) & (columns < width)) ? weight : Vec8f{};
