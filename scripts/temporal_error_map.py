@@ -35,7 +35,7 @@ def warp(image: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 def main(sequence_dir: str, spp: int, model: str | None) -> None:
     frames = [affinity.read_frame(path) for path in affinity.list_frame_files(sequence_dir)]
-    denoiser = affinity.Denoiser(affinity.Model(model)) if model else affinity.Denoiser()
+    denoiser = affinity.Denoiser(model)
     outputs = []
     for frame in frames:
         view = dict(frame, samples=np.ascontiguousarray(frame["samples"][:, :, :spp, :]))

@@ -99,7 +99,10 @@ PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass) {
                 2);
     PreparedInputs prepared{networkInput, noisy, {}, {}, {}, albedo, invalidCount};
     if (emissionBypass) {
-        const at::Tensor emissive = finiteOrZero(samples.narrow(2, channel::kEmissive, 1)) > 0.5;
+        // An emitter or the sky seen directly; through a mirror or glass the path's choices make
+        // it as noisy as any other light.
+        const at::Tensor emissive = (finiteOrZero(samples.narrow(2, channel::kEmissive, 1)) > 0.5)
+                                        .logical_and(finiteOrZero(samples.narrow(2, channel::kSpecularBounce, 1)) <= 0.5);
         const at::Tensor filtered = at::where(emissive, 0.0, clean), bypassed = at::where(emissive, clean, 0.0);
         prepared.diffuse = filtered.narrow(2, 0, 3).mean(1);
         prepared.specular = filtered.narrow(2, 3, 3).mean(1);

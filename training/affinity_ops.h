@@ -10,8 +10,8 @@ namespace affinity::train {
 struct PreparedInputs {
     at::Tensor networkInput;    // [B, S, 18, H, W]
     at::Tensor radiance;        // [B, 3, H, W]: mean over samples of the sanitised radiance
-    // With emission bypass, the samples flagged emissive (an emitter or the sky seen directly or
-    // through mirrors) are not filtered: diffuse and specular are then the means of the other
+    // With emission bypass, the samples of direct emission (flagged emissive and not
+    // specular_bounce: an emitter or the sky seen directly) are not filtered: diffuse and specular are then the means of the other
     // samples' parts (0 for the emissive ones), emitted the mean of the emissive ones' radiance.
     at::Tensor diffuse;         // [B, 3, H, W]
     at::Tensor specular;        // [B, 3, H, W]

@@ -70,7 +70,9 @@ void addSampleSums(const float* samples, const float* radiance, int pixels, int 
             const std::size_t sample = std::size_t(p) * spp + std::size_t(s);
             const float* r = radiance + sample * kRadianceChannels;
             const float* raw = samples + sample * kFeatureCount;
-            const bool emissive = raw[channel::kEmissive] > 0.5f;  // false for NaN
+            // Bypassed light: an emitter or the sky seen directly (through a mirror or glass the
+            // path's choices make it as noisy as any other light). False for NaN flags.
+            const bool emissive = raw[channel::kEmissive] > 0.5f && !(raw[channel::kSpecularBounce] > 0.5f);
             float* light = o + (emissive ? Embedding::kSumEmittedDiffuse : Embedding::kSumDiffuse);
             for (int c = 0; c < 3; ++c) light[c] += r[c];
             light = o + (emissive ? Embedding::kSumEmittedSpecular : Embedding::kSumSpecular);

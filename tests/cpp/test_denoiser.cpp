@@ -129,6 +129,7 @@ TEST(Denoiser, EmissionBypassKeepsALampsLightOffItsNeighbours) {
                     float* sample = f.sample(x, y, s);
                     const bool lamp = x == 7 && y == 5;
                     sample[channel::kEmissive] = lamp ? 1.0f : 0.0f;
+                    sample[channel::kSpecularBounce] = 0.0f;
                     if (lamp)
                         for (int c = 0; c < 6; ++c) sample[c] = c < 3 ? 0.0f : 1000.0f;
                 }

@@ -36,6 +36,7 @@ std::vector<float> samplesWithBadValues(int pixels, int spp, std::mt19937& rng) 
         for (int c = 0; c < 6; ++c) f[c] = unit(rng) < 0.05f ? bad[s % 4] : 10.0f * unit(rng) * unit(rng);
         for (int c = 0; c < 3; ++c) f[channel::kAlbedo + c] = unit(rng) < 0.05f ? bad[(s + 1) % 4] : unit(rng);
         f[channel::kEmissive] = unit(rng) < 0.3f ? 1.0f : 0.0f;
+        f[channel::kSpecularBounce] = unit(rng) < 0.3f ? 1.0f : 0.0f;
     }
     return samples;
 }
@@ -54,7 +55,7 @@ TEST(SampleSums, AreTheSanitisedSumsOfTheLightOfNonEmissiveAndEmissiveSamplesAnd
         float expected[15] = {};
         for (int s = 0; s < spp; ++s) {
             const float* f = samples.data() + (std::size_t(p) * spp + s) * kFeatureCount;
-            const bool emissive = f[channel::kEmissive] > 0.5f;
+            const bool emissive = f[channel::kEmissive] > 0.5f && f[channel::kSpecularBounce] <= 0.5f;
             emissiveSamples += emissive;
             for (int c = 0; c < 6; ++c) expected[(emissive ? 9 : 0) + c] += clean(f[c]);
             for (int c = 0; c < 3; ++c) expected[6 + c] += clean(f[channel::kAlbedo + c]);

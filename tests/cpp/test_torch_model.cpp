@@ -373,6 +373,7 @@ TEST(TorchOps, DemodulationAndBypassAreUndoneExactlyWithoutFiltering) {
     samples[0][1][10][0][0] = 0.0;
     samples[0][2][10][0][0] = 0.0;
     samples.narrow(2, 14, 1).copy_((torch::rand({1, 3, 1, 4, 5}, torch::kDouble) < 0.3).to(torch::kDouble));
+    samples.narrow(2, 17, 1).copy_((torch::rand({1, 3, 1, 4, 5}, torch::kDouble) < 0.3).to(torch::kDouble));
     for (int variant = 0; variant < 4; ++variant) {
         const bool demodulation = variant & 1, bypass = variant & 2;
         const PreparedInputs prepared = prepareInputs(samples, bypass);
@@ -389,8 +390,8 @@ TEST(TorchOps, DemodulationAndBypassAreUndoneExactlyWithoutFiltering) {
             EXPECT_LT(maxAbsDiff(signal[0][0][0][0], prepared.diffuse[0][0][0][0] / kDemodulationFloor), 1e-12);
         }
         if (bypass) {
-            // Emissive samples are all in `emitted`, the others all in diffuse + specular.
-            const torch::Tensor emissive = samples.narrow(2, 14, 1) > 0.5;
+            // Direct emission is all in `emitted`, the rest all in diffuse + specular.
+            const torch::Tensor emissive = (samples.narrow(2, 14, 1) > 0.5).logical_and(samples.narrow(2, 17, 1) <= 0.5);
             const torch::Tensor light = samples.narrow(2, 0, 3) + samples.narrow(2, 3, 3);
             EXPECT_LT(maxAbsDiff(prepared.emitted, torch::where(emissive, light, 0.0).mean(1)), 1e-12);
             EXPECT_LT(maxAbsDiff(prepared.diffuse + prepared.specular, torch::where(emissive, 0.0, light).mean(1)),
