@@ -81,10 +81,11 @@ PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass) {
     const at::Tensor rawAlbedo = samples.narrow(2, channel::kAlbedo, 3);
     const at::Tensor albedo = at::where(at::isfinite(rawAlbedo).logical_and(rawAlbedo > 0), rawAlbedo, 0.0).mean(1);
 
-    // depthScale = 1 / mean of the positive finite depths (the core does the same), summed in
-    // double so that large frames keep full float precision.
     // Every other feature: non-finite values read as 0 (the core does the same).
     auto finiteOrZero = [](const at::Tensor& values) { return at::where(at::isfinite(values), values, 0.0); };
+
+    // depthScale = 1 / mean of the positive finite depths (the core does the same), summed in
+    // double so that large frames keep full float precision.
     const at::Tensor depth = finiteOrZero(samples.narrow(2, channel::kDepth, 1));
     const at::Tensor hit = at::isfinite(depth).logical_and(depth > 0);
     const at::Tensor depthSum = at::where(hit, depth.to(at::kDouble), 0.0).sum(perFrame);
