@@ -84,21 +84,6 @@ void blendInto(const FeatureMap& current, const FeatureMap& lambda, FeatureMap& 
         }
 }
 
-// state = (1 - lambda) current + lambda history.
-void blend(const FeatureMap& current, const FeatureMap& history, const FeatureMap& lambda, FeatureMap& out) {
-    out.resize(current.height(), current.width(), current.channels());
-    const int channels = current.channels();
-#pragma omp parallel for schedule(static)
-    for (int y = 0; y < current.height(); ++y)
-        for (int x = 0; x < current.width(); ++x) {
-            const float l = lambda.pixel(y, x)[0];
-            const float* c = current.pixel(y, x);
-            const float* h = history.pixel(y, x);
-            float* o = out.pixel(y, x);
-            for (int k = 0; k < channels; ++k) o[k] = (1.0f - l) * c[k] + l * h[k];
-        }
-}
-
 // Angle in degrees between two cameras' viewing directions, and the distance between them.
 void cameraChange(const Matrix4& a, const Matrix4& b, double& degrees, double& distance) {
     // Row 2 of world-to-camera is the camera's +Z axis in world space; the position is
@@ -172,12 +157,10 @@ struct Denoiser::State {
     // Temporal state (docs/MODEL.md sections 3 and 7): the accumulated signal and the last
     // kernel's output, in the filtered signal's channels (filter_signal.h).
     FeatureMap embeddingHistory, signalHistory, output, lastFeatures;
-    // Every other map of a frame comes from the pool and goes back as soon as it is dead; the
-    // signal, its warped history and the accumulated unfiltered channels (alive across the U-Net
-    // anyway) are kept here.
+    // Every other map of a frame comes from the pool and goes back as soon as it is dead.
     FeatureMapPool pool;
-    FeatureMap signal, historySignal, unfiltered;
-    FeatureMap sampleSums;  // Embedding's per-pixel sums, from the pool until the signal is made
+    FeatureMap sampleSums;  // Embedding's per-pixel sums, until the signal is made from them
+    FeatureMap signal;      // this frame's signal to accumulate, until it is
     // A frame arriving in batches (addSamples): sums kept until finishFrame().
     struct Pending {
         FeatureMap hiddenSum;  // from the pool
@@ -406,12 +389,20 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
     const Network& net = s.model.network();
     DenoiseReport local;
     StageClock clock(local);
-    FeatureMap embedding = s.pool.take(p.height, p.width, net.embedding->outChannels());
-    net.embedding->finish(p.hiddenSum, p.spp, embedding);
+    // In place where the last layer keeps the width: the sums and the embedding, together with
+    // the previous frame's embedding, would otherwise be the largest set of maps alive.
+    FeatureMap embedding;
+    if (net.embedding->outChannels() == net.embedding->hiddenChannels()) {
+        embedding = std::move(p.hiddenSum);
+        net.embedding->finish(embedding, p.spp, embedding);
+    } else {
+        embedding = s.pool.take(p.height, p.width, net.embedding->outChannels());
+        net.embedding->finish(p.hiddenSum, p.spp, embedding);
+        s.pool.give(p.hiddenSum);
+    }
     s.makeSignal(p.spp);
     local.invalidRadiance = p.invalidRadiance;
     const float depth = p.depthScale;
-    s.pool.give(p.hiddenSum);
     const double addMilliseconds = p.milliseconds;
     p.spp = 0;
     clock.mark("embedding");
@@ -426,7 +417,9 @@ void Denoiser::discardSamples() {
 }
 
 void Denoiser::State::makeSignal(int spp) {
-    makeAccumulatedSignal(sampleSums, spp, model.network().signalLayout(), signal);
+    const SignalLayout layout = model.network().signalLayout();
+    signal = pool.take(sampleSums.height(), sampleSums.width(), layout.channels());
+    makeAccumulatedSignal(sampleSums, spp, layout, signal);
     pool.give(sampleSums);
 }
 
@@ -465,14 +458,15 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
 
     // 3. Histories: warped previous state where valid, the current frame elsewhere.
     FeatureMap historyEmbedding = s.pool.take(height, width, E);
+    FeatureMap historySignal = s.pool.take(height, width, s.signal.channels());
     if (history) {
         warpBilinear(s.embeddingHistory, motion, historyEmbedding);
         keepWhereValid(historyEmbedding, embedding, valid);
-        warpBilinear(s.signalHistory, motion, s.historySignal);
-        keepWhereValid(s.historySignal, s.signal, valid);
+        warpBilinear(s.signalHistory, motion, historySignal);
+        keepWhereValid(historySignal, s.signal, valid);
     } else {
         historyEmbedding = embedding;
-        s.historySignal = s.signal;
+        historySignal = s.signal;
     }
     s.pool.give(s.embeddingHistory);  // read: their memory serves the U-Net
     s.pool.give(s.signalHistory);
@@ -492,10 +486,11 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     s.pool.give(embedding);
     const SignalLayout layout = net.signalLayout();
     const int C = layout.filteredChannels();
+    blendInto(s.signal, params.lambda, historySignal);
+    s.signalHistory = std::move(historySignal);
+    s.pool.give(s.signal);
     FeatureMap filterA = s.pool.take(height, width, C), filterB = s.pool.take(height, width, C);
-    s.signalHistory = s.pool.take(height, width, s.signal.channels());
-    blend(s.signal, s.historySignal, params.lambda, s.signalHistory);
-    splitAccumulatedSignal(s.signalHistory, layout, filterA, s.unfiltered);
+    filteredPart(s.signalHistory, layout, filterA);
     clock.mark("kernel parameters and accumulation");
 
     // 6. Dilated spatial kernels on the accumulated signal.
@@ -529,7 +524,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     clock.mark("temporal kernel");
 
     std::vector<float> radiance(std::size_t(width) * std::size_t(height) * 3);
-    radianceFromSignal(s.output, s.unfiltered, layout, radiance.data());
+    radianceFromSignal(s.output, s.signalHistory, layout, radiance.data());
     if (report) *report = local;
     return radiance;
 }

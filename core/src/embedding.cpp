@@ -234,6 +234,8 @@ void Embedding::finish(const FeatureMap& hiddenSum, int spp, FeatureMap& output)
     const int channels = hiddenChannels();
     if (hiddenSum.channels() != channels || spp <= 0)
         throw Error("Embedding: finish needs a sum of " + std::to_string(channels) + " channels over >= 1 sample");
+    if (&output == &hiddenSum && outChannels() != channels)
+        throw Error("Embedding: finish in place needs as many output channels as hidden ones");
     output.resize(hiddenSum.height(), hiddenSum.width(), outChannels());
     const long long pixels = (long long)hiddenSum.height() * hiddenSum.width();
     const float inverseSpp = 1.0f / float(spp);

@@ -41,41 +41,37 @@ void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& 
     }
 }
 
-void splitAccumulatedSignal(const FeatureMap& accumulated, const SignalLayout& layout, FeatureMap& filtered,
-                            FeatureMap& unfiltered) {
+void filteredPart(const FeatureMap& accumulated, const SignalLayout& layout, FeatureMap& filtered) {
     const int channels = accumulated.channels();
     if (channels != layout.channels())
         throw Error("filter signal: an accumulated signal of " + std::to_string(channels) +
                     " channels where the model accumulates " + std::to_string(layout.channels()));
-    const int kept = layout.filteredChannels(), rest = layout.unfilteredChannels();
+    const int kept = layout.filteredChannels();
     filtered.resize(accumulated.height(), accumulated.width(), kept);
-    if (rest > 0) unfiltered.resize(accumulated.height(), accumulated.width(), rest);
     const long long pixels = (long long)accumulated.pixelCount();
 #pragma omp parallel for schedule(static)
     for (long long p = 0; p < pixels; ++p) {
         const float* in = accumulated.data() + std::size_t(p) * channels;
         std::copy(in, in + kept, filtered.data() + std::size_t(p) * kept);
-        if (rest > 0) std::copy(in + kept, in + channels, unfiltered.data() + std::size_t(p) * rest);
     }
 }
 
-void radianceFromSignal(const FeatureMap& filtered, const FeatureMap& unfiltered, const SignalLayout& layout,
+void radianceFromSignal(const FeatureMap& filtered, const FeatureMap& accumulated, const SignalLayout& layout,
                         float* out) {
-    const int kept = layout.filteredChannels(), rest = layout.unfilteredChannels();
-    const bool sizesMatch = rest == 0 || (unfiltered.height() == filtered.height() &&
-                                          unfiltered.width() == filtered.width() && unfiltered.channels() == rest);
-    if (filtered.channels() != kept || !sizesMatch)
+    const int kept = layout.filteredChannels(), channels = layout.channels();
+    if (filtered.channels() != kept || accumulated.channels() != channels ||
+        accumulated.height() != filtered.height() || accumulated.width() != filtered.width())
         throw Error("filter signal: radiance needs a filtered signal of " + std::to_string(kept) +
-                    " channels and an unfiltered part of " + std::to_string(rest) + " of the same size");
+                    " channels and an accumulated one of " + std::to_string(channels) + " of the same size");
     const long long pixels = (long long)filtered.pixelCount();
 #pragma omp parallel for schedule(static)
     for (long long p = 0; p < pixels; ++p) {
         const float* f = filtered.data() + std::size_t(p) * kept;
-        const float* u = rest > 0 ? unfiltered.data() + std::size_t(p) * rest : nullptr;
+        const float* u = accumulated.data() + std::size_t(p) * channels + kept;  // the unfiltered channels
         float* o = out + std::size_t(p) * 3;
         for (int c = 0; c < 3; ++c) {
             float radiance = layout.albedoDemodulation ? std::max(u[c], kDemodulationFloor) * f[c] + f[3 + c] : f[c];
-            if (layout.emissionBypass) radiance += u[rest - 3 + c];
+            if (layout.emissionBypass) radiance += u[channels - kept - 3 + c];
             o[c] = radiance;
         }
     }

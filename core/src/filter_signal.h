@@ -29,14 +29,13 @@ struct SignalLayout {
 // layout.channels().
 void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& layout, FeatureMap& signal);
 
-// The part of an accumulated signal the kernels filter and the part they do not (albedo, then
-// emitted radiance; left alone when the layout has none).
-void splitAccumulatedSignal(const FeatureMap& accumulated, const SignalLayout& layout, FeatureMap& filtered,
-                            FeatureMap& unfiltered);
+// The part of an accumulated signal the kernels filter (its first layout.filteredChannels()).
+void filteredPart(const FeatureMap& accumulated, const SignalLayout& layout, FeatureMap& filtered);
 
-// Radiance from a filtered signal and the unfiltered part: the albedo multiplied back onto the
-// diffuse light, the emitted radiance added. out: pixelCount() x 3 floats.
-void radianceFromSignal(const FeatureMap& filtered, const FeatureMap& unfiltered, const SignalLayout& layout,
+// Radiance from a filtered signal and the accumulated signal it came from, whose unfiltered
+// channels hold the albedo to multiply back onto the diffuse light and the emitted radiance to
+// add. out: pixelCount() x 3 floats.
+void radianceFromSignal(const FeatureMap& filtered, const FeatureMap& accumulated, const SignalLayout& layout,
                         float* out);
 
 }  // namespace affinity

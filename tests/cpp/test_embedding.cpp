@@ -218,6 +218,35 @@ TEST(Embedding, ThreadCountDoesNotChangeResults) {
     EXPECT_EQ(std::memcmp(one.data(), two.data(), one.size() * sizeof(float)), 0);
 }
 
+// Streaming (denoiser.cpp) finishes in place when the last layer keeps the width: every chunk
+// must be read before it is overwritten, whatever the threads do.
+TEST(Embedding, FinishInPlaceGivesApplysResultBitForBit) {
+    std::mt19937 rng(6);
+    const Embedding embedding(randomLayers({18, 32, 32, 32}, rng));
+    const int height = 41, width = 131, spp = 3;  // several chunks per thread
+    const std::vector<float> samples = randomSamples((long long)height * width * spp, rng);
+    FeatureMap expected;
+    embedding.apply(samples.data(), height, width, spp, 0.2f, expected);
+    // Batches of one and two samples per pixel, taken out of the frame's [pixel][sample] layout.
+    std::vector<float> first, second;
+    for (long long p = 0; p < (long long)height * width; ++p) {
+        const float* pixel = samples.data() + p * spp * kFeatureCount;
+        first.insert(first.end(), pixel, pixel + kFeatureCount);
+        second.insert(second.end(), pixel + kFeatureCount, pixel + spp * kFeatureCount);
+    }
+    FeatureMap sums;
+    embedding.accumulate(first.data(), height, width, 1, 0.2f, sums, true);
+    embedding.accumulate(second.data(), height, width, spp - 1, 0.2f, sums, false);
+    embedding.finish(sums, spp, sums);
+    ASSERT_EQ(sums.channels(), expected.channels());
+    EXPECT_EQ(std::memcmp(sums.data(), expected.data(), expected.size() * sizeof(float)), 0);
+
+    const Embedding narrowing(randomLayers({18, 32, 8}, rng));
+    FeatureMap hidden;
+    narrowing.accumulate(first.data(), height, width, 1, 0.2f, hidden, true);
+    EXPECT_THROW(narrowing.finish(hidden, 1, hidden), Error);
+}
+
 TEST(Embedding, DepthIsScaled) {
     // One linear layer reading only depth: e = depth * depthScale.
     DenseLayer layer;

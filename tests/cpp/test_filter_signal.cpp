@@ -144,12 +144,12 @@ TEST(FilterSignal, UnfilteredSignalGivesTheNoisyRadianceBack) {
     oneLayerEmbedding().apply(samples.data(), height, width, spp, 1.0f, embedding, &sums);
     for (int variant = 0; variant < 4; ++variant) {
         const SignalLayout layout{(variant & 1) != 0, (variant & 2) != 0};
-        FeatureMap signal, filtered, unfiltered;
+        FeatureMap signal, filtered;
         makeAccumulatedSignal(sums, spp, layout, signal);
-        splitAccumulatedSignal(signal, layout, filtered, unfiltered);
+        filteredPart(signal, layout, filtered);
         ASSERT_EQ(filtered.channels(), layout.filteredChannels());
         std::vector<float> radiance(std::size_t(height) * width * 3);
-        radianceFromSignal(filtered, unfiltered, layout, radiance.data());
+        radianceFromSignal(filtered, signal, layout, radiance.data());
         for (int p = 0; p < height * width; ++p)
             for (int c = 0; c < 3; ++c) {
                 const float* sum = sums.data() + p * Embedding::kSampleSumChannels;
@@ -161,12 +161,14 @@ TEST(FilterSignal, UnfilteredSignalGivesTheNoisyRadianceBack) {
 }
 
 TEST(FilterSignal, RejectsWrongChannelCounts) {
-    FeatureMap signal, filtered, unfiltered;
+    FeatureMap signal, filtered;
     EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, 9), 1, SignalLayout{}, signal), Error);
     EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, 15), 0, SignalLayout{}, signal), Error);
-    EXPECT_THROW(splitAccumulatedSignal(FeatureMap(2, 2, 6), SignalLayout{true, false}, filtered, unfiltered), Error);
+    EXPECT_THROW(filteredPart(FeatureMap(2, 2, 6), SignalLayout{true, false}, filtered), Error);
     std::vector<float> out(12);
-    EXPECT_THROW(radianceFromSignal(FeatureMap(2, 2, 6), FeatureMap(2, 3, 3), SignalLayout{true, false}, out.data()),
+    EXPECT_THROW(radianceFromSignal(FeatureMap(2, 2, 6), FeatureMap(2, 3, 9), SignalLayout{true, false}, out.data()),
+                 Error);
+    EXPECT_THROW(radianceFromSignal(FeatureMap(2, 2, 6), FeatureMap(2, 2, 6), SignalLayout{true, false}, out.data()),
                  Error);
 }
 
