@@ -11,8 +11,9 @@ namespace affinity {
 class FeatureMapPool {
 public:
     // A map of the given size with undefined contents: the free map that fits most tightly
-    // unless it is more than twice the size needed (then a new one), else the largest free
-    // map grown, else a new one.
+    // unless it is more than kKeepRatio times the size needed (then a new one), else the
+    // largest free map grown, else a new one.
+    static constexpr std::size_t kKeepRatio = 6;
     FeatureMap take(int height, int width, int channels);
     // Takes `map` back (leaving it empty) for later take() calls.
     void give(FeatureMap& map);

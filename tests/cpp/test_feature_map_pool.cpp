@@ -32,16 +32,17 @@ TEST(FeatureMapPool, PicksTheTightestFreeMapThatFits) {
     EXPECT_EQ(pool.freeCapacity(), 100u * 8 + 100u * 1);
 }
 
-TEST(FeatureMapPool, KeepsAMapMoreThanTwiceTheRequestForLater) {
+TEST(FeatureMapPool, KeepsAMapManyTimesTheRequestForLater) {
+    static_assert(FeatureMapPool::kKeepRatio == 6);
     FeatureMapPool pool;
-    FeatureMap big = pool.take(10, 10, 8);
+    FeatureMap big = pool.take(10, 10, 13);
     const float* bigMemory = big.data();
     pool.give(big);
-    FeatureMap small = pool.take(10, 10, 3);  // 800 > 2 x 300: a new map
+    FeatureMap small = pool.take(10, 10, 2);  // 1300 > 6 x 200: a new map
     EXPECT_NE(small.data(), bigMemory);
-    EXPECT_EQ(pool.freeCapacity(), 800u);
-    FeatureMap half = pool.take(10, 10, 4);  // 800 = 2 x 400: the free map
-    EXPECT_EQ(half.data(), bigMemory);
+    EXPECT_EQ(pool.freeCapacity(), 1300u);
+    FeatureMap third = pool.take(10, 10, 3);  // 1300 <= 6 x 300: the free map
+    EXPECT_EQ(third.data(), bigMemory);
     EXPECT_EQ(pool.freeCapacity(), 0u);
 }
 
