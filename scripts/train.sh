@@ -2,9 +2,10 @@
 # One command for a full training (docs/TRAINING.md): renders the data cache if needed, trains,
 # plots the loss curves, exports the best weights and evaluates them against the noisy input.
 #   scripts/train.sh [extra affinity_train options, e.g. --albedo-demodulation]
-# The defaults are the CPU training of the shipped default model: preset small, crops of 4 x 64x64
-# x 6 frames per step, 160 minutes of training after the data (400 sequences, about 17 minutes
-# to render on 2 cores), so that the whole command ends within 3 hours on a 2-core machine.
+# The defaults are a full CPU training of the small preset: crops of 4 x 64x64 x 6 frames per
+# step, 160 minutes of training after the data (400 sequences, about 17 minutes to render on 2
+# cores), so that the whole command ends within 3 hours on a 2-core machine (docs/TRAINING.md,
+# "A full CPU training"; the shipped default itself was trained on a GPU).
 # Environment: AFFINITY_DATA (data cache, default $HOME/.cache/affinity/data-v1), RUN (output
 # folder, default $AFFINITY_DATA/../runs/<preset>), PRESET (small), STEPS (100000: the time limit
 # ends the run), MINUTES (160; 0: no limit), BATCH (4), LR_HALF_LIFE (1200), THREADS (2), SEED (1),

@@ -99,3 +99,9 @@ TEST(Parity, EveryPresetAtInitialisation) {
 TEST(Parity, TheShippedDefaultModel) {
     expectParity(std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw", test::randomSequence(3, 16, 16, 4, 5));
 }
+
+// The CPU-trained alternative with albedo demodulation and emission bypass (docs/TRAINING.md).
+TEST(Parity, TheDemodulatedBypassModel) {
+    expectParity(std::string(AFFINITY_SOURCE_DIR) + "/core/models/small_demod_bypass.affw",
+                 test::randomSequence(3, 16, 16, 4, 6));
+}
