@@ -157,25 +157,17 @@ ModelConfig configFromWeights(const Weights& weights) {
     config.kernels = readConfigInt(weights, "config.kernels");
     config.affinityFeatures = readConfigInt(weights, "config.affinity_features");
     config.kernelSize = readConfigInt(weights, "config.kernel_size");
-    // Optional: files written before demodulation existed filter radiance.
-    if (weights.has("config.albedo_demodulation")) {
-        const int demodulation = readConfigInt(weights, "config.albedo_demodulation");
-        if (demodulation != 0 && demodulation != 1)
-            throw Error(source + ": config.albedo_demodulation is " + str(demodulation) + ", expected 0 or 1");
-        config.albedoDemodulation = demodulation == 1;
-    }
-    if (weights.has("config.emission_bypass")) {
-        const int bypass = readConfigInt(weights, "config.emission_bypass");
-        if (bypass != 0 && bypass != 1)
-            throw Error(source + ": config.emission_bypass is " + str(bypass) + ", expected 0 or 1");
-        config.emissionBypass = bypass == 1;
-    }
-    if (weights.has("config.source_weights")) {
-        const int sourceWeights = readConfigInt(weights, "config.source_weights");
-        if (sourceWeights != 0 && sourceWeights != 1)
-            throw Error(source + ": config.source_weights is " + str(sourceWeights) + ", expected 0 or 1");
-        config.sourceWeights = sourceWeights == 1;
-    }
+    // Optional switches, absent in files written before they existed: absent reads as off.
+    auto flag = [&](const char* name) {
+        if (!weights.has(name)) return false;
+        const int value = readConfigInt(weights, name);
+        if (value != 0 && value != 1)
+            throw Error(source + ": " + name + " is " + str(value) + ", expected 0 or 1");
+        return value == 1;
+    };
+    config.albedoDemodulation = flag("config.albedo_demodulation");
+    config.emissionBypass = flag("config.emission_bypass");
+    config.sourceWeights = flag("config.source_weights");
 
     for (int i = 0;; ++i) {
         const std::string name = "embed." + str(i) + ".weight";
