@@ -33,8 +33,12 @@ int runInit(const std::vector<std::string>& args) {
     bool demodulation = false, bypass = false, sourceWeights = false;
     for (std::size_t i = 0; i < args.size(); ++i) {
         const std::string& flag = args[i];
-        if (flag == "--albedo-demodulation" || flag == "--emission-bypass" || flag == "--source-weights") {
-            (flag == "--albedo-demodulation" ? demodulation : flag == "--emission-bypass" ? bypass : sourceWeights) = true;
+        bool* option = flag == "--albedo-demodulation" ? &demodulation
+                       : flag == "--emission-bypass"   ? &bypass
+                       : flag == "--source-weights"    ? &sourceWeights
+                                                       : nullptr;
+        if (option) {
+            *option = true;
             continue;
         }
         if (i + 1 >= args.size()) throw Error("init: " + flag + " needs a value");

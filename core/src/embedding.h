@@ -44,10 +44,10 @@ public:
     // to hiddenSum / spp. Batches
     // added in sample order give apply()'s result bit for bit (the last layer is linear, so the
     // mean can be taken before it). accumulate() returns the bad radiance count as apply().
-    // `output` may be `hiddenSum` itself when outChannels() == hiddenChannels(): the embedding
-    // then takes the sums' memory instead of a second map (each chunk is read before written).
     long long accumulate(const float* samples, int height, int width, int spp, float depthScale,
                          FeatureMap& hiddenSum, bool first, FeatureMap* sampleSums = nullptr) const;
+    // `output` may be `hiddenSum` itself when outChannels() == hiddenChannels(): the embedding
+    // then takes the sums' memory instead of a second map (each chunk is read before written).
     void finish(const FeatureMap& hiddenSum, int spp, FeatureMap& output) const;
     int hiddenChannels() const;
 
