@@ -67,7 +67,7 @@ private:
     void transpose(int y, float* destination) const {
         for (const FeatureMap* source : sources_) {
             const int channels = source->channels();
-            const float* pixels = source->pixel(y, 0);
+            const float* pixels = source->pixel(y % source->height(), 0);  // rings: row y at y % height
             switch (channels) {
                 case 1: std::memcpy(destination, pixels, std::size_t(width_) * sizeof(float)); break;
                 case 3: deinterleave<3>(pixels, destination); break;
@@ -300,23 +300,21 @@ RowFunction rowFunctionFor(int features, int channels) {
                          : selectRowFunction<6, kTemporal>(features, counts);
 }
 
-void checkMap(const FeatureMap& map, const char* name, int height, int width, int channels) {
-    if (map.height() != height || map.width() != width || map.channels() != channels) {
+// A map must be `width` x `channels` and either the whole image (`imageHeight` rows) or a ring
+// of at least `ringRows` rows (ringRows = imageHeight: the whole image only).
+void checkMap(const FeatureMap& map, const char* name, int imageHeight, int ringRows, int width, int channels) {
+    const bool heightFits = map.height() == imageHeight || (map.height() >= ringRows && map.height() < imageHeight);
+    if (!heightFits || map.width() != width || map.channels() != channels) {
         throw Error(std::string("affinity filter: ") + name + " is " + std::to_string(map.height()) + " x " +
                     std::to_string(map.width()) + " x " + std::to_string(map.channels()) + ", expected " +
-                    std::to_string(height) + " x " + std::to_string(width) + " x " + std::to_string(channels));
+                    std::to_string(imageHeight) + " x " + std::to_string(width) + " x " + std::to_string(channels) +
+                    (ringRows < imageHeight ? " (or a ring of at least " + std::to_string(ringRows) + " rows)" : ""));
     }
 }
 
-struct TemporalInputs {
-    const FeatureMap* bandwidth;
-    const FeatureMap* output;
-    const FeatureMap* features;
-    const FeatureMap* valid;
-};
-
+// `ringRows`: the fewest rows a ring input may hold for this call (imageHeight: no rings).
 void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
-                 const TemporalInputs* temporal) {
+                 const TemporalTaps* temporal, int imageHeight, int ringRows) {
     if (kernel.features == nullptr || kernel.bandwidth == nullptr || kernel.centre == nullptr) {
         throw Error("affinity filter: a kernel parameter map is missing");
     }
@@ -324,7 +322,7 @@ void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tap
         throw Error("affinity filter: the tap grid size " + std::to_string(tapSize) + " is not a positive odd number");
     }
     if (dilation < 1) throw Error("affinity filter: dilation " + std::to_string(dilation) + " is below 1");
-    const int height = radiance.height(), width = radiance.width();
+    const int width = radiance.width();
     const int features = kernel.features->channels();
     if (features < 1) throw Error("affinity filter: the kernel has no features");
     const int channels = radiance.channels();
@@ -332,41 +330,46 @@ void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tap
         std::end(kSignalChannelCounts))
         throw Error("affinity filter: the filtered signal has " + std::to_string(channels) +
                     " channels, expected 3 (radiance) or 6 (demodulated diffuse and specular)");
-    checkMap(radiance, "the filtered signal", height, width, channels);
-    checkMap(*kernel.features, "the features", height, width, features);
-    checkMap(*kernel.bandwidth, "the bandwidth a", height, width, 1);
-    checkMap(*kernel.centre, "the centre weight c", height, width, 1);
-    if (kernel.source != nullptr) checkMap(*kernel.source, "the source weight s", height, width, 1);
+    checkMap(radiance, "the filtered signal", imageHeight, ringRows, width, channels);
+    checkMap(*kernel.features, "the features", imageHeight, ringRows, width, features);
+    checkMap(*kernel.bandwidth, "the bandwidth a", imageHeight, ringRows, width, 1);
+    checkMap(*kernel.centre, "the centre weight c", imageHeight, ringRows, width, 1);
+    if (kernel.source != nullptr) checkMap(*kernel.source, "the source weight s", imageHeight, ringRows, width, 1);
     if (temporal != nullptr) {
-        checkMap(*temporal->bandwidth, "the temporal bandwidth b", height, width, 1);
-        checkMap(*temporal->output, "the warped output", height, width, channels);
-        checkMap(*temporal->features, "the warped features", height, width, features);
-        checkMap(*temporal->valid, "the warped validity", height, width, 1);
+        checkMap(*temporal->bandwidth, "the temporal bandwidth b", imageHeight, ringRows, width, 1);
+        checkMap(*temporal->output, "the warped output", imageHeight, ringRows, width, channels);
+        checkMap(*temporal->features, "the warped features", imageHeight, ringRows, width, features);
+        checkMap(*temporal->valid, "the warped validity", imageHeight, ringRows, width, 1);
     }
 }
 
+bool isInput(const FeatureMap& map, const FeatureMap& radiance, const KernelParams& kernel,
+             const TemporalTaps* temporal) {
+    return &map == &radiance || &map == kernel.features || &map == kernel.bandwidth || &map == kernel.centre ||
+           &map == kernel.source ||
+           (temporal != nullptr && (&map == temporal->bandwidth || &map == temporal->output ||
+                                    &map == temporal->features || &map == temporal->valid));
+}
+
 // The shared driver of both passes: rows in parallel, each thread with its own planar rows.
-void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
-               const TemporalInputs* temporal, FeatureMap& output) {
-    checkInputs(radiance, kernel, tapSize, dilation, temporal);
-    const int height = radiance.height(), width = radiance.width();
-    const int features = kernel.features->channels();
-
-    // Writing into a buffer that is also read would race between rows.
-    const bool outputAliasesInput = &output == &radiance || &output == kernel.features ||
-                                    &output == kernel.bandwidth || &output == kernel.centre || &output == kernel.source ||
-                                    (temporal != nullptr && (&output == temporal->bandwidth || &output == temporal->output ||
-                                                             &output == temporal->features || &output == temporal->valid));
-    FeatureMap separate;
-    FeatureMap& target = outputAliasesInput ? separate : output;
-    target.resize(height, width, radiance.channels());
-    if (height == 0 || width == 0) {
-        if (outputAliasesInput) output = std::move(separate);
-        return;
-    }
-
+void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                   const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output) {
+    if (begin < 0 || end > imageHeight || begin > end)
+        throw Error("affinity filter: rows " + std::to_string(begin) + ".." + std::to_string(end) +
+                    " are not inside an image of " + std::to_string(imageHeight) + " rows");
+    if (begin == end || radiance.width() == 0) return;
     const int radius = tapSize / 2;
     const int pad = radius * dilation;
+    // A ring must hold every row one call reads at once.
+    const int ringRows = std::min(imageHeight, end - begin + 2 * std::max(pad, temporal != nullptr ? 1 : 0));
+    checkInputs(radiance, kernel, tapSize, dilation, temporal, imageHeight, ringRows);
+    // Writing into a buffer that is also read would race between rows.
+    if (isInput(output, radiance, kernel, temporal)) throw Error("affinity filter: the output is one of the inputs");
+    checkMap(output, "the output", imageHeight, std::min(imageHeight, end - begin), radiance.width(),
+             radiance.channels());
+    const int width = radiance.width();
+    const int features = kernel.features->channels();
+
     std::vector<const FeatureMap*> spatialSources = {kernel.features, &radiance, kernel.bandwidth, kernel.centre};
     if (kernel.source != nullptr) spatialSources.push_back(kernel.source);
     if (temporal != nullptr) spatialSources.push_back(temporal->bandwidth);
@@ -392,10 +395,10 @@ void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSi
         const float* temporalTaps[3] = {nullptr, nullptr, nullptr};
         // Contiguous blocks of rows per thread, so each thread's ring reuses its rows.
 #pragma omp for schedule(static)
-        for (int y = 0; y < height; ++y) {
+        for (int y = begin; y < end; ++y) {
             for (int j = 0; j < tapSize; ++j) {
                 const int tapY = y + (j - radius) * dilation;
-                taps[std::size_t(j)] = tapY >= 0 && tapY < height ? spatial.row(tapY) : nullptr;
+                taps[std::size_t(j)] = tapY >= 0 && tapY < imageHeight ? spatial.row(tapY) : nullptr;
             }
             // After the neighbours: the centre row must stay in its slot (it is one of them).
             RowInputs in{};
@@ -410,15 +413,27 @@ void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSi
             if (temporalCache != nullptr) {
                 for (int j = 0; j < 3; ++j) {
                     const int tapY = y + j - 1;
-                    temporalTaps[j] = tapY >= 0 && tapY < height ? temporalCache->row(tapY) : nullptr;
+                    temporalTaps[j] = tapY >= 0 && tapY < imageHeight ? temporalCache->row(tapY) : nullptr;
                 }
                 in.temporalStride = temporalCache->stride();
                 in.temporalRows = temporalTaps;
             }
-            filterRowFunction(in, target.pixel(y, 0));
+            filterRowFunction(in, output.pixel(y % output.height(), 0));
         }
     }
-    if (outputAliasesInput) output = std::move(separate);
+}
+
+// A whole image: the output sized here, and written through a separate buffer when it is an input.
+void runFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+               const TemporalTaps* temporal, FeatureMap& output) {
+    const int height = radiance.height();
+    checkInputs(radiance, kernel, tapSize, dilation, temporal, height, height);
+    const bool outputIsInput = isInput(output, radiance, kernel, temporal);
+    FeatureMap separate;
+    FeatureMap& target = outputIsInput ? separate : output;
+    target.resize(height, radiance.width(), radiance.channels());
+    runFilterRows(radiance, kernel, tapSize, dilation, temporal, height, 0, height, target);
+    if (outputIsInput) output = std::move(separate);
 }
 
 }  // namespace
@@ -431,19 +446,37 @@ void affinityFilter(const FeatureMap& radiance, const KernelParams& kernel, int 
 void affinityFilterTemporal(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
                             const FeatureMap& temporalBandwidth, const FeatureMap& warpedOutput,
                             const FeatureMap& warpedFeatures, const FeatureMap& warpedValid, FeatureMap& output) {
-    const TemporalInputs temporal{&temporalBandwidth, &warpedOutput, &warpedFeatures, &warpedValid};
+    const TemporalTaps temporal{&temporalBandwidth, &warpedOutput, &warpedFeatures, &warpedValid};
     runFilter(radiance, kernel, tapSize, dilation, &temporal, output);
+}
+
+void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                        const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output) {
+    runFilterRows(radiance, kernel, tapSize, dilation, temporal, imageHeight, begin, end, output);
 }
 
 void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& output) {
     if (&output == &previous) throw Error("warpBilinear: the output must not be the input");
+    output.resize(previous.height(), previous.width(), previous.channels());
+    warpBilinearRows(previous, motion, 0, previous.height(), output);
+}
+
+void warpBilinearRows(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output) {
+    if (&output == &previous) throw Error("warpBilinear: the output must not be the input");
     const int height = previous.height(), width = previous.width(), channels = previous.channels();
-    output.resize(height, width, channels);
-    if (output.empty()) return;
+    if (begin < 0 || end > height || begin > end)
+        throw Error("warpBilinear: rows " + std::to_string(begin) + ".." + std::to_string(end) +
+                    " are not inside an image of " + std::to_string(height) + " rows");
+    if (output.width() != width || output.channels() != channels || output.height() < std::min(height, end - begin))
+        throw Error("warpBilinear: the output is " + std::to_string(output.height()) + " x " +
+                    std::to_string(output.width()) + " x " + std::to_string(output.channels()) +
+                    ", too small for rows " + std::to_string(begin) + ".." + std::to_string(end) + " of a " +
+                    std::to_string(width) + "-wide " + std::to_string(channels) + "-channel map");
+    if (begin == end || width == 0) return;
     if (motion == nullptr) throw Error("warpBilinear: no motion vectors");
     const std::size_t rowFloats = std::size_t(width) * channels;
 #pragma omp parallel for schedule(static)
-    for (int y = 0; y < height; ++y) {
+    for (int y = begin; y < end; ++y) {
         for (int xBlock = 0; xBlock < width; xBlock += kLanes) {
             // Positions, taps and weights for eight pixels at once (this part vectorises), then
             // the channel loops pixel by pixel.
@@ -476,7 +509,7 @@ void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& o
                 const float* p11 = previous.data() + bottom[l] + right[l];
                 const float w00 = (1 - fx[l]) * (1 - fy[l]), w01 = fx[l] * (1 - fy[l]);
                 const float w10 = (1 - fx[l]) * fy[l], w11 = fx[l] * fy[l];
-                float* out = output.pixel(y, xBlock + l);
+                float* out = output.pixel(y % output.height(), xBlock + l);
 #pragma omp simd
                 for (int c = 0; c < channels; ++c) {
                     out[c] = w00 * p00[c] + w01 * p01[c] + w10 * p10[c] + w11 * p11[c];

@@ -15,6 +15,14 @@ struct KernelParams {
     const FeatureMap* source = nullptr;
 };
 
+// The inputs of the temporal taps of the last pass (docs/MODEL.md section 7).
+struct TemporalTaps {
+    const FeatureMap* bandwidth;  // b, 1 channel
+    const FeatureMap* output;     // the warped previous output, as many channels as the signal
+    const FeatureMap* features;   // the warped previous features, F channels
+    const FeatureMap* valid;      // the warped validity, 1 channel
+};
+
 // One dilated spatial pass: output = normalised affinity-weighted sum of `radiance`, the
 // filtered signal (3 channels, or 6 when demodulated: filter_signal.h), over the
 // tapSize x tapSize grid with the given dilation.
@@ -28,8 +36,21 @@ void affinityFilterTemporal(const FeatureMap& radiance, const KernelParams& kern
                             const FeatureMap& temporalBandwidth, const FeatureMap& warpedOutput,
                             const FeatureMap& warpedFeatures, const FeatureMap& warpedValid, FeatureMap& output);
 
+// Rows [begin, end) of either pass (temporal null: the spatial one) over an image
+// `imageHeight` rows tall, for running the passes band by band (band_schedule.h). Any map may
+// be a ring shorter than the image that holds image row y at row y % height(): the pass reads
+// its inputs' rows begin - reach .. end - 1 + reach (reach: radius x dilation, 1 for the
+// temporal taps) and writes rows begin .. end - 1 of `output`, which must already have the
+// image's width and the signal's channels and must not be one of the inputs.
+void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                        const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output);
+
 // output(p) = bilinear lookup of `previous` at (x + motion.x, y + motion.y), border-clamped.
 // motion: height x width x 2 floats (frame layout).
 void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& output);
+
+// Rows [begin, end) of the above into `output`, a ring of the previous map's width and channels
+// holding image row y at row y % height() (or a whole image).
+void warpBilinearRows(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output);
 
 }  // namespace affinity

@@ -444,6 +444,53 @@ TEST(AffinityFilter, OutputMayBeTheRadianceBuffer) {
     EXPECT_TRUE(bitwiseEqual(s.radiance, separate));
 }
 
+// Rows [begin, end) of `map` copied into a ring of `rows` rows (image row y at row y % rows).
+FeatureMap ringOf(const FeatureMap& map, int rows, int begin, int end) {
+    FeatureMap ring(rows, map.width(), map.channels());
+    ring.fill(std::nanf(""));  // a row read that the ring does not hold poisons the result
+    for (int y = std::max(0, begin); y < std::min(map.height(), end); ++y)
+        std::copy(map.pixel(y, 0), map.pixel(y, 0) + std::size_t(map.width()) * map.channels(),
+                  ring.pixel(y % rows, 0));
+    return ring;
+}
+
+TEST(AffinityFilter, BandsThroughRingsEqualTheWholeImage) {
+    std::mt19937 rng(21);
+    const int height = 37, width = 29, band = 5, tapSize = 5, dilation = 2;
+    Scene s = randomScene(height, width, 8, rng);
+    for (bool temporal : {false, true}) {
+        const FeatureMap whole = run(s, tapSize, dilation, temporal);
+        const int reach = (tapSize / 2) * dilation;
+        const int rows = band + 2 * reach;
+        for (int begin = 0; begin < height; begin += band) {
+            const int end = std::min(height, begin + band);
+            auto ring = [&](const FeatureMap& map) { return ringOf(map, rows, begin - reach, end + reach); };
+            const FeatureMap radiance = ring(s.radiance), features = ring(s.features), bandwidth = ring(s.bandwidth),
+                             centre = ring(s.centre), temporalBandwidth = ring(s.temporalBandwidth),
+                             warpedOutput = ring(s.warpedOutput), warpedFeatures = ring(s.warpedFeatures),
+                             warpedValid = ring(s.warpedValid);
+            const TemporalTaps taps{&temporalBandwidth, &warpedOutput, &warpedFeatures, &warpedValid};
+            FeatureMap out(band, width, 3);
+            affinityFilterRows(radiance, {&features, &bandwidth, &centre}, tapSize, dilation,
+                               temporal ? &taps : nullptr, height, begin, end, out);
+            for (int y = begin; y < end; ++y)
+                ASSERT_EQ(std::memcmp(out.pixel(y % band, 0), whole.pixel(y, 0), sizeof(float) * 3 * width), 0)
+                    << "row " << y << (temporal ? " (temporal)" : "");
+        }
+    }
+}
+
+TEST(AffinityFilter, RejectsARingTooShortForTheRowsItReads) {
+    std::mt19937 rng(22);
+    Scene s = randomScene(30, 9, 8, rng);
+    const FeatureMap shortRadiance = ringOf(s.radiance, 8, 0, 8);
+    FeatureMap out(30, 9, 3);
+    // Rows 0..4 with dilation 2 read rows -4..8: 13 rows, more than the ring's 8.
+    EXPECT_THROW(affinityFilterRows(shortRadiance, s.kernel(), 5, 2, nullptr, 30, 0, 5, out), Error);
+    EXPECT_THROW(affinityFilterRows(s.radiance, s.kernel(), 5, 2, nullptr, 30, 0, 5, s.radiance), Error);
+    EXPECT_THROW(affinityFilterRows(s.radiance, s.kernel(), 5, 2, nullptr, 30, 25, 31, out), Error);
+}
+
 TEST(AffinityFilter, EmptyImage) {
     Scene s;
     s.radiance = FeatureMap(0, 0, 3);
@@ -554,6 +601,26 @@ TEST(WarpBilinear, ClampsTheContinuousPositionAtTheBorder) {
     motion[2] = -1e30f;
     warpBilinear(previous, motion.data(), out);
     for (std::size_t i = 0; i < out.size(); ++i) EXPECT_TRUE(std::isfinite(out.data()[i]));
+}
+
+TEST(WarpBilinear, RowsIntoARingEqualTheWholeImage) {
+    std::mt19937 rng(23);
+    const int height = 23, width = 19;
+    const FeatureMap previous = randomMap(height, width, 5, -3.0f, 3.0f, rng);
+    std::vector<float> motion(std::size_t(height) * width * 2);
+    std::uniform_real_distribution<float> shift(-6.0f, 6.0f);
+    for (float& m : motion) m = shift(rng);
+    FeatureMap whole;
+    warpBilinear(previous, motion.data(), whole);
+    FeatureMap ring(4, width, 5);
+    for (int begin = 0; begin < height; begin += 4) {
+        const int end = std::min(height, begin + 4);
+        warpBilinearRows(previous, motion.data(), begin, end, ring);
+        for (int y = begin; y < end; ++y)
+            ASSERT_EQ(std::memcmp(ring.pixel(y % 4, 0), whole.pixel(y, 0), sizeof(float) * 5 * width), 0) << "row " << y;
+    }
+    FeatureMap tooShort(3, width, 5);
+    EXPECT_THROW(warpBilinearRows(previous, motion.data(), 0, 4, tooShort), Error);
 }
 
 TEST(WarpBilinear, ResultsDoNotDependOnTheThreadCount) {
