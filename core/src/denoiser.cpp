@@ -9,6 +9,7 @@
 
 #include "affinity/error.h"
 #include "affinity_filter.h"
+#include "band_schedule.h"
 #include "fast_exp.h"
 #include "feature_map_pool.h"
 #include "filter_signal.h"
@@ -71,19 +72,6 @@ void keepWhereValid(FeatureMap& warped, const FeatureMap& current, const float* 
             }
 }
 
-// history = (1 - lambda) current + lambda history, in place.
-void blendInto(const FeatureMap& current, const FeatureMap& lambda, FeatureMap& history) {
-    const int channels = current.channels();
-#pragma omp parallel for schedule(static)
-    for (int y = 0; y < current.height(); ++y)
-        for (int x = 0; x < current.width(); ++x) {
-            const float l = lambda.pixel(y, x)[0];
-            const float* c = current.pixel(y, x);
-            float* h = history.pixel(y, x);
-            for (int k = 0; k < channels; ++k) h[k] = (1.0f - l) * c[k] + l * h[k];
-        }
-}
-
 // Angle in degrees between two cameras' viewing directions, and the distance between them.
 void cameraChange(const Matrix4& a, const Matrix4& b, double& degrees, double& distance) {
     // Row 2 of world-to-camera is the camera's +Z axis in world space; the position is
@@ -112,6 +100,11 @@ public:
         report_.stageMilliseconds.emplace_back(stage, std::chrono::duration<double, std::milli>(now - last_).count());
         last_ = now;
     }
+    // Stages that ran interleaved (band by band), timed apart by the caller; restarts the clock.
+    void add(const char* stage, double milliseconds) {
+        report_.stageMilliseconds.emplace_back(stage, milliseconds);
+        last_ = std::chrono::steady_clock::now();
+    }
 
 private:
     DenoiseReport& report_;
@@ -132,7 +125,19 @@ struct UnetTail {
     }
 };
 
-// The per-pixel parameters of the filters (docs/MODEL.md section 5).
+// Rows of the kernel parameters made per band (band_schedule.h). Each thread transposes its
+// rows' tap halo again per band, so bands much shorter cost time; at 1080p 4 spp (small model,
+// streamed) 32/64/128/256/all rows gave a peak of 1331/1336/1310/1348/1627 MiB and equal time
+// within this VM's noise.
+constexpr int kBandRows = 128;
+
+// Milliseconds since `start`.
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
+// The per-pixel parameters of the filters (docs/MODEL.md section 5). Rings of a few dozen rows
+// (band_schedule.h) except the last kernel's features, which the next frame's temporal taps read.
 struct KernelMaps {
     std::vector<FeatureMap> features, bandwidth, centre;  // per kernel: F channels, 1, 1
     std::vector<FeatureMap> source;                       // per kernel, 1 channel (models with source weights)
@@ -172,11 +177,22 @@ struct Denoiser::State {
 
     State(Model m, DenoiserOptions o) : model(std::move(m)), options(o) {}
     // The U-Net up to the input of its last full-resolution convolution, which
-    // kernelParameters() fuses with the head.
+    // parametersAndAccumulation() fuses with the head.
     UnetTail runUnet(const Network& net, const FeatureMap& embedding, const FeatureMap& historyEmbedding);
+    // After the U-Net (docs/MODEL.md sections 3-7), band by band down the image: kernel
+    // parameters, accumulation of `embedding` and `signal` into their (warped) histories with the
+    // learned lambda, and the affinity kernels, whose output replaces `output`.
+    void filterInBands(const Network& net, const UnetTail& tail, const FeatureMap& embedding,
+                       FeatureMap& historyEmbedding, FeatureMap& historySignal, const float* motion,
+                       const float* valid, bool history, StageClock& clock);
+    KernelMaps takeKernelMaps(const Network& net, int height, int width, int ringRows);
     // Applies the convolutions of `block` in turn to `map`, each output replacing its input.
     void runBlock(const std::vector<Conv2d>& block, std::size_t first, std::size_t end, FeatureMap& map);
-    KernelMaps kernelParameters(const Network& net, const UnetTail& tail);
+    // Rows [begin, end) of the kernel parameters, each pixel's accumulation done as soon as its
+    // lambda is known, and the filtered part of the accumulated signal into `filterIn`.
+    void parametersAndAccumulation(const Network& net, const UnetTail& tail, int begin, int end, KernelMaps& maps,
+                                   const FeatureMap& embedding, FeatureMap& historyEmbedding,
+                                   FeatureMap& historySignal, FeatureMap& filterIn);
     void give(KernelMaps& maps);
     // The signal to accumulate of a frame of `spp` samples from `sampleSums`, whose memory goes
     // back to the pool.
@@ -248,23 +264,29 @@ UnetTail Denoiser::State::runUnet(const Network& net, const FeatureMap& embeddin
     return UnetTail{FeatureMap(), std::move(low)};
 }
 
+KernelMaps Denoiser::State::takeKernelMaps(const Network& net, int height, int width, int ringRows) {
+    KernelMaps maps;
+    for (int k = 0; k < net.kernels; ++k) {
+        maps.features.push_back(pool.take(k + 1 == net.kernels ? height : ringRows, width, net.affinityFeatures));
+        maps.bandwidth.push_back(pool.take(ringRows, width, 1));
+        maps.centre.push_back(pool.take(ringRows, width, 1));
+        if (net.sourceWeights) maps.source.push_back(pool.take(ringRows, width, 1));
+    }
+    maps.temporalBandwidth = pool.take(ringRows, width, 1);
+    maps.lambda = pool.take(ringRows, width, 1);
+    return maps;
+}
+
 // The last full-resolution convolution and the head, fused tile by tile so that neither
 // full-resolution output exists as a whole: each tile's head output goes straight into the
-// parameter maps.
-KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail& tail) {
+// parameter maps (rings: row y at y % height), and its lambda into the accumulation.
+void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTail& tail, int begin, int end,
+                                                KernelMaps& maps, const FeatureMap& embedding,
+                                                FeatureMap& historyEmbedding, FeatureMap& historySignal,
+                                                FeatureMap& filterIn) {
     const int rows = tail.input.height(), columns = tail.input.width();
     const int K = net.kernels, F = net.affinityFeatures;
-    KernelMaps maps;
-    for (int k = 0; k < K; ++k) {
-        maps.features.push_back(pool.take(rows, columns, F));
-        maps.bandwidth.push_back(pool.take(rows, columns, 1));
-        maps.centre.push_back(pool.take(rows, columns, 1));
-        if (net.sourceWeights) maps.source.push_back(pool.take(rows, columns, 1));
-    }
     const int G = net.kernelChannels();  // head channels per kernel (docs/MODEL.md section 5)
-    maps.temporalBandwidth = pool.take(rows, columns, 1);
-    maps.lambda = pool.take(rows, columns, 1);
-
     const Conv2d& last = net.decoder[0].back();
     const Conv2d& head = *net.head;
     const std::vector<ConvSource> sources = tail.sources();
@@ -274,15 +296,16 @@ KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail&
     if (sourceChannels != last.inChannels() || head.inChannels() != last.outChannels() ||
         head.outChannels() != net.headChannels())
         throw Error("denoise: the model's last layers do not fit together");
+    const int E = embedding.channels(), S = signal.channels(), C = filterIn.channels();
     const int tiles = (columns + kConvTileWidth - 1) / kConvTileWidth;
-    const long long tasks = (long long)rows * tiles;
+    const long long tasks = (long long)(end - begin) * tiles;
 #pragma omp parallel
     {
         std::vector<float> decoded(std::size_t(columns) * std::size_t(last.outChannels()));
         std::vector<float> params(std::size_t(columns) * std::size_t(head.outChannels()));
 #pragma omp for schedule(dynamic)
         for (long long task = 0; task < tasks; ++task) {
-            const int y = int(task / tiles);
+            const int y = begin + int(task / tiles);
             const int x0 = int(task % tiles) * kConvTileWidth;
             const int x1 = std::min(columns, x0 + kConvTileWidth);
             last.applyRow(sources.data(), int(sources.size()), rows, columns, y, x0, x1, Activation::LeakyRelu,
@@ -290,27 +313,47 @@ KernelMaps Denoiser::State::kernelParameters(const Network& net, const UnetTail&
             const ConvSource decodedRow{decoded.data(), last.outChannels()};
             head.applyRow(&decodedRow, 1, 1, columns, 0, x0, x1, Activation::None, params.data());
             // Scatter the head's channels into the maps, then the sigmoids on each single-channel
-            // map's contiguous stretch of this tile.
+            // map's contiguous stretch of this tile. Rings hold row y at y % height: one division
+            // per map and tile (per pixel, it made this stage 50-100 ms slower at 1080p).
+            auto row = [y](FeatureMap& map) { return map.pixel(y % map.height(), 0); };
+            for (std::size_t k = 0; k < std::size_t(K); ++k) {
+                float* features = row(maps.features[k]);
+                float* bandwidth = row(maps.bandwidth[k]);
+                float* centre = row(maps.centre[k]);
+                float* source = maps.source.empty() ? nullptr : row(maps.source[k]);
+                for (int x = x0; x < x1; ++x) {
+                    const float* base = params.data() + std::size_t(x) * std::size_t(head.outChannels()) + int(k) * G;
+                    std::copy(base, base + F, features + std::size_t(x) * F);
+                    bandwidth[x] = base[F];
+                    centre[x] = base[F + 1];
+                    if (source) source[x] = base[F + 2];
+                }
+                sigmoidInPlace(centre + x0, x1 - x0);
+                if (source) sigmoidInPlace(source + x0, x1 - x0);
+            }
+            float* temporalBandwidth = row(maps.temporalBandwidth);
+            float* lambda = row(maps.lambda);
             for (int x = x0; x < x1; ++x) {
                 const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
-                for (std::size_t k = 0; k < std::size_t(K); ++k) {
-                    const float* base = o + int(k) * G;
-                    std::copy(base, base + F, maps.features[k].pixel(y, x));
-                    maps.bandwidth[k].pixel(y, x)[0] = base[F];
-                    maps.centre[k].pixel(y, x)[0] = base[F + 1];
-                    if (!maps.source.empty()) maps.source[k].pixel(y, x)[0] = base[F + 2];
-                }
-                maps.temporalBandwidth.pixel(y, x)[0] = o[K * G];
-                maps.lambda.pixel(y, x)[0] = o[K * G + 1];
+                temporalBandwidth[x] = o[K * G];
+                lambda[x] = o[K * G + 1];
             }
-            for (std::size_t k = 0; k < std::size_t(K); ++k) {
-                sigmoidInPlace(maps.centre[k].pixel(y, x0), x1 - x0);
-                if (!maps.source.empty()) sigmoidInPlace(maps.source[k].pixel(y, x0), x1 - x0);
+            sigmoidInPlace(lambda + x0, x1 - x0);
+            // 3 (continued). history = (1 - lambda) current + lambda history, in place; the
+            // kernels filter the first C channels of the accumulated signal.
+            float* filtered = row(filterIn);
+            for (int x = x0; x < x1; ++x) {
+                const float l = lambda[x];
+                const float* e = embedding.pixel(y, x);
+                float* h = historyEmbedding.pixel(y, x);
+                for (int c = 0; c < E; ++c) h[c] = (1.0f - l) * e[c] + l * h[c];
+                const float* current = signal.pixel(y, x);
+                float* accumulated = historySignal.pixel(y, x);
+                for (int c = 0; c < S; ++c) accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
+                std::copy(accumulated, accumulated + C, filtered + std::size_t(x) * C);
             }
-            sigmoidInPlace(maps.lambda.pixel(y, x0), x1 - x0);
         }
     }
-    return maps;
 }
 
 void Denoiser::State::give(KernelMaps& maps) {
@@ -318,6 +361,78 @@ void Denoiser::State::give(KernelMaps& maps) {
         for (FeatureMap& map : *list) pool.give(map);
     pool.give(maps.temporalBandwidth);
     pool.give(maps.lambda);
+}
+
+void Denoiser::State::filterInBands(const Network& net, const UnetTail& tail, const FeatureMap& embedding,
+                                    FeatureMap& historyEmbedding, FeatureMap& historySignal, const float* motion,
+                                    const float* valid, bool history, StageClock& clock) {
+    const int height = embedding.height(), width = embedding.width();
+    const int K = net.kernels, F = net.affinityFeatures, C = net.signalLayout().filteredChannels();
+    // The kernels that run, in order (all K, or the last alone), and how far their taps reach.
+    std::vector<int> kernels, radii;
+    for (int k = options.allKernels ? 0 : K - 1; k < K; ++k) {
+        kernels.push_back(k);
+        radii.push_back((net.tapSize / 2) << k);
+    }
+    const bool temporal = history && options.temporalKernel;
+    const int ringRows = bandRingRows(height, kBandRows, radii);
+    KernelMaps params = takeKernelMaps(net, height, width, ringRows);
+    FeatureMap filterIn = pool.take(ringRows, width, C);
+    std::vector<FeatureMap> between;  // the output of each kernel but the last
+    for (std::size_t i = 0; i + 1 < kernels.size(); ++i) between.push_back(pool.take(ringRows, width, C));
+    FeatureMap newOutput = pool.take(height, width, C);
+    FeatureMap warpedOutput, warpedFeatures, warpedValid;  // the temporal taps' rows
+    if (temporal) {
+        warpedOutput = pool.take(ringRows, width, C);
+        warpedFeatures = pool.take(ringRows, width, F);
+        warpedValid = pool.take(ringRows, width, 1);
+    }
+    int warpedEnd = 0;
+    const TemporalTaps taps{&params.temporalBandwidth, &warpedOutput, &warpedFeatures, &warpedValid};
+
+    double parameterMs = 0.0, spatialMs = 0.0, temporalMs = 0.0;
+    for (const BandStep& step : bandSchedule(height, kBandRows, radii)) {
+        auto start = std::chrono::steady_clock::now();
+        parametersAndAccumulation(net, tail, step.begin, step.end, params, embedding, historyEmbedding, historySignal,
+                                  filterIn);
+        parameterMs += millisecondsSince(start);
+        for (std::size_t i = 0; i < kernels.size(); ++i) {
+            const auto [begin, end] = step.stages[i];
+            if (begin == end) continue;
+            start = std::chrono::steady_clock::now();
+            const int k = kernels[i];
+            const bool last = i + 1 == kernels.size();
+            const FeatureMap& in = i == 0 ? filterIn : between[i - 1];
+            FeatureMap& out = last ? newOutput : between[i];
+            if (last && temporal) {
+                // 7. The last kernel with temporal taps on the warped previous output: one row
+                // each way of warped rows.
+                const int warpTo = std::min(height, end + 1);
+                warpBilinearRows(output, motion, warpedEnd, warpTo, warpedOutput);
+                warpBilinearRows(lastFeatures, motion, warpedEnd, warpTo, warpedFeatures);
+                for (int y = warpedEnd; y < warpTo; ++y)
+                    std::copy(valid + std::size_t(y) * width, valid + std::size_t(y + 1) * width,
+                              warpedValid.pixel(y % ringRows, 0));
+                warpedEnd = warpTo;
+                affinityFilterRows(in, params.kernel(k), net.tapSize, 1 << k, &taps, height, begin, end, out);
+            } else {
+                // 6. A dilated spatial kernel.
+                affinityFilterRows(in, params.kernel(k), net.tapSize, 1 << k, nullptr, height, begin, end, out);
+            }
+            (last && temporal ? temporalMs : spatialMs) += millisecondsSince(start);
+        }
+    }
+    clock.add("kernel parameters and accumulation", parameterMs);
+    clock.add("spatial kernels", spatialMs);
+    clock.add("temporal kernel", temporalMs);
+
+    std::swap(output, newOutput);
+    pool.give(newOutput);
+    pool.give(lastFeatures);
+    lastFeatures = std::move(params.features[std::size_t(K - 1)]);
+    give(params);
+    for (FeatureMap* map : {&filterIn, &warpedOutput, &warpedFeatures, &warpedValid}) pool.give(*map);
+    for (FeatureMap& map : between) pool.give(map);
 }
 
 std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* report) {
@@ -472,59 +587,20 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     s.pool.give(s.signalHistory);
     clock.mark("warp history");
 
-    // 4-5. U-Net and per-pixel parameters.
+    // 4-7. U-Net, then the kernel parameters, accumulation and kernels band by band.
     UnetTail tail = s.runUnet(net, embedding, historyEmbedding);
     clock.mark("u-net");
-    KernelMaps params = s.kernelParameters(net, tail);
+    s.filterInBands(net, tail, embedding, historyEmbedding, historySignal, motion, valid, history, clock);
     s.pool.give(tail.coarse);
     s.pool.give(tail.input);
-    const int K = net.kernels, F = net.affinityFeatures;
-
-    // 3 (continued). Accumulate with the learned lambda; keep for the next frame.
-    blendInto(embedding, params.lambda, historyEmbedding);
-    s.embeddingHistory = std::move(historyEmbedding);
     s.pool.give(embedding);
-    const SignalLayout layout = net.signalLayout();
-    const int C = layout.filteredChannels();
-    blendInto(s.signal, params.lambda, historySignal);
-    s.signalHistory = std::move(historySignal);
     s.pool.give(s.signal);
-    FeatureMap filterA = s.pool.take(height, width, C), filterB = s.pool.take(height, width, C);
-    filteredPart(s.signalHistory, layout, filterA);
-    clock.mark("kernel parameters and accumulation");
-
-    // 6. Dilated spatial kernels on the accumulated signal.
-    FeatureMap* in = &filterA;
-    FeatureMap* out = &filterB;
-    for (int k = s.options.allKernels ? 0 : K - 1; k + 1 < K; ++k) {
-        affinityFilter(*in, params.kernel(k), net.tapSize, 1 << k, *out);
-        std::swap(in, out);
-    }
-    clock.mark("spatial kernels");
-    // 7. The last kernel, with temporal taps on the warped previous output.
-    if (history && s.options.temporalKernel) {
-        FeatureMap warpedOutput = s.pool.take(height, width, C), validMap = s.pool.take(height, width, 1);
-        FeatureMap warpedFeatures = s.pool.take(height, width, F);
-        warpBilinear(s.output, motion, warpedOutput);
-        warpBilinear(s.lastFeatures, motion, warpedFeatures);
-        std::copy(valid, valid + std::size_t(width) * std::size_t(height), validMap.data());
-        affinityFilterTemporal(*in, params.kernel(K - 1), net.tapSize, 1 << (K - 1), params.temporalBandwidth,
-                               warpedOutput, warpedFeatures, validMap, *out);
-        for (FeatureMap* map : {&warpedOutput, &validMap, &warpedFeatures}) s.pool.give(*map);
-    } else {
-        affinityFilter(*in, params.kernel(K - 1), net.tapSize, 1 << (K - 1), *out);
-    }
-    std::swap(s.output, *out);
-    s.pool.give(filterA);
-    s.pool.give(filterB);
-    s.pool.give(s.lastFeatures);
-    s.lastFeatures = std::move(params.features[std::size_t(K - 1)]);
-    s.give(params);
+    s.embeddingHistory = std::move(historyEmbedding);
+    s.signalHistory = std::move(historySignal);
     s.hasHistory = true;
-    clock.mark("temporal kernel");
 
     std::vector<float> radiance(std::size_t(width) * std::size_t(height) * 3);
-    radianceFromSignal(s.output, s.signalHistory, layout, radiance.data());
+    radianceFromSignal(s.output, s.signalHistory, net.signalLayout(), radiance.data());
     if (report) *report = local;
     return radiance;
 }

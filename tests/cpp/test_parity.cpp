@@ -47,6 +47,18 @@ TEST(Parity, RandomWeightsOnRandomSequences) {
     }
 }
 
+// Frames taller than the kernel stage's bands (128 rows each, rings of 158 rows):
+// parameters, accumulation and kernels run band by band on the C++ side, whole on the other.
+TEST(Parity, FramesOfSeveralBands) {
+    test::ModelShape shape;
+    shape.albedoDemodulation = true;
+    shape.emissionBypass = true;
+    const std::string path = temporaryPath("tall.affw");
+    train::writeWeightsFile(path, test::randomModelTensors(shape, 8));
+    expectParity(path, test::randomSequence(3, 6, 231, 2, 8));
+    std::filesystem::remove(path);
+}
+
 TEST(Parity, SourceWeightedRandomWeights) {
     test::ModelShape shape;
     shape.sourceWeights = true;
