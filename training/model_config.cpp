@@ -87,7 +87,16 @@ void validateConfig(const ModelConfig& config) {
 
 std::vector<std::string> presetNames() { return {"tiny", "small", "paper"}; }
 
-ModelConfig presetConfig(const std::string& name) {
+bool ModelOptions::parseFlag(const std::string& flag) {
+    bool* option = flag == "--albedo-demodulation" ? &albedoDemodulation
+                   : flag == "--source-weights"    ? &sourceWeights
+                   : flag == "--emission-bypass"   ? &emissionBypass
+                                                   : nullptr;
+    if (option) *option = true;
+    return option != nullptr;
+}
+
+ModelConfig presetConfig(const std::string& name, const ModelOptions& options) {
     ModelConfig config;
     if (name == "tiny") {
         config.embedWidths = {16, 16};
@@ -111,6 +120,9 @@ ModelConfig presetConfig(const std::string& name) {
         for (const std::string& preset : presetNames()) known += (known.empty() ? "" : ", ") + preset;
         throw Error("unknown model preset '" + name + "' (known: " + known + ")");
     }
+    config.albedoDemodulation = options.albedoDemodulation;
+    config.sourceWeights = options.sourceWeights;
+    config.emissionBypass = options.emissionBypass;
     return config;
 }
 

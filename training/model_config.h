@@ -49,13 +49,24 @@ struct ModelConfig {
     int headChannels() const { return kernels * kernelChannels() + 2; }
 };
 
+// The switches of ModelConfig that every preset leaves off, as a command line chooses them.
+struct ModelOptions {
+    bool albedoDemodulation = false;
+    bool sourceWeights = false;
+    bool emissionBypass = false;
+    // Sets the switch that `flag` names (--albedo-demodulation, --source-weights,
+    // --emission-bypass); false for any other flag.
+    bool parseFlag(const std::string& flag);
+};
+
 // Throws affinity::Error naming the first inconsistency (sizes < 1, even T, level counts).
 void validateConfig(const ModelConfig& config);
 
 // Named sizes: "tiny" (tests), "small" (the default for training on this machine's CPU),
 // "paper" (widths like the paper's third-party reimplementations).
 std::vector<std::string> presetNames();
-ModelConfig presetConfig(const std::string& name);  // throws affinity::Error for unknown names
+// Throws affinity::Error for unknown names.
+ModelConfig presetConfig(const std::string& name, const ModelOptions& options = {});
 
 // Reads the structure back from a weights file's tensors (docs/MODEL.md sections 4 and 8) and
 // checks every shape against it; throws affinity::Error naming the source and the tensor.

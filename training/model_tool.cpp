@@ -30,17 +30,10 @@ std::string joined(const std::vector<int>& widths) {
 int runInit(const std::vector<std::string>& args) {
     std::string preset = "small", out;
     std::uint64_t seed = 0;
-    bool demodulation = false, bypass = false, sourceWeights = false;
+    ModelOptions options;
     for (std::size_t i = 0; i < args.size(); ++i) {
         const std::string& flag = args[i];
-        bool* option = flag == "--albedo-demodulation" ? &demodulation
-                       : flag == "--emission-bypass"   ? &bypass
-                       : flag == "--source-weights"    ? &sourceWeights
-                                                       : nullptr;
-        if (option) {
-            *option = true;
-            continue;
-        }
+        if (options.parseFlag(flag)) continue;
         if (i + 1 >= args.size()) throw Error("init: " + flag + " needs a value");
         const std::string& value = args[++i];
         if (flag == "--preset") {
@@ -62,10 +55,7 @@ int runInit(const std::vector<std::string>& args) {
         }
     }
     if (out.empty()) throw Error("init: --out FILE is required");
-    ModelConfig config = presetConfig(preset);
-    config.albedoDemodulation = demodulation;
-    config.emissionBypass = bypass;
-    config.sourceWeights = sourceWeights;
+    const ModelConfig config = presetConfig(preset, options);
     writeInitialModel(config, seed, out);
     std::cout << "wrote " << out << ": preset " << preset << ", seed " << seed << ", "
               << parameterCount(config) << " parameters\n";

@@ -60,18 +60,7 @@ int main(int argc, char** argv) {
                 options.resume = false;
                 continue;
             }
-            if (flag == "--albedo-demodulation") {
-                options.albedoDemodulation = true;
-                continue;
-            }
-            if (flag == "--source-weights") {
-                options.sourceWeights = true;
-                continue;
-            }
-            if (flag == "--emission-bypass") {
-                options.emissionBypass = true;
-                continue;
-            }
+            if (options.model.parseFlag(flag)) continue;
             if (i + 1 >= args.size()) throw affinity::Error(flag + " needs a value");
             const std::string& value = args[++i];
             auto integer = [&] {

@@ -309,11 +309,7 @@ TrainSummary runTraining(const TrainOptions& options) {
     } else if (!options.initWeights.empty()) {
         model = modelFromWeights(Weights::fromFile(options.initWeights));
     } else {
-        ModelConfig config = presetConfig(options.preset);
-        config.albedoDemodulation = options.albedoDemodulation;
-        config.sourceWeights = options.sourceWeights;
-        config.emissionBypass = options.emissionBypass;
-        model = makeModel(config, options.seed);
+        model = makeModel(presetConfig(options.preset, options.model), options.seed);
     }
     model->to(device);
     model->train();

@@ -5,6 +5,8 @@
 #include <cstdint>
 #include <string>
 
+#include "model_config.h"
+
 namespace affinity::train {
 
 struct TrainOptions {
@@ -13,9 +15,7 @@ struct TrainOptions {
     std::string outDir;         // loss.csv, checkpoint.affw, optimizer.pt, state.txt, best.affw, final.affw
     std::string preset = "tiny";
     std::string initWeights;    // start from this weights file instead of a fresh preset model
-    bool albedoDemodulation = false;  // a fresh preset model filters demodulated diffuse + specular
-    bool sourceWeights = false;       // a fresh preset model's kernels weigh neighbours by s(q)
-    bool emissionBypass = false;      // a fresh preset model leaves emissive samples unfiltered
+    ModelOptions model;         // switches of a fresh preset model (demodulation, source weights, bypass)
     std::uint64_t seed = 1;     // model initialisation and every random choice of the batches
     int steps = 1000;           // total optimisation steps (a resumed run continues up to this)
     double maxMinutes = 0;      // stop earlier after this much wall time in this run (0: no limit)

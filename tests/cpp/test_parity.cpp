@@ -97,11 +97,11 @@ TEST(Parity, EveryPresetAtInitialisation) {
     for (const std::string& preset : train::presetNames()) {
         for (int variant = 0; variant < 4; ++variant) {
             const std::string path = temporaryPath(preset + std::to_string(variant) + ".affw");
-            train::ModelConfig config = train::presetConfig(preset);
-            config.albedoDemodulation = variant == 1 || variant == 2;
-            config.sourceWeights = variant == 2;
-            config.emissionBypass = variant >= 2;
-            train::writeInitialModel(config, 7, path);
+            train::ModelOptions options;
+            options.albedoDemodulation = variant == 1 || variant == 2;
+            options.sourceWeights = variant == 2;
+            options.emissionBypass = variant >= 2;
+            train::writeInitialModel(train::presetConfig(preset, options), 7, path);
             expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
             std::filesystem::remove(path);
         }

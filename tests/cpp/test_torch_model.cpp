@@ -121,6 +121,23 @@ TEST(TorchModel, ParameterNamesAndShapesFollowModelDoc) {
     }
 }
 
+TEST(ModelOptions, EachFlagSetsItsSwitchAndPresetsCarryThem) {
+    ModelOptions options;
+    EXPECT_FALSE(options.parseFlag("--albedo"));
+    EXPECT_FALSE(options.parseFlag("--fresh"));
+    EXPECT_TRUE(options.parseFlag("--emission-bypass"));
+    EXPECT_TRUE(!options.albedoDemodulation && !options.sourceWeights && options.emissionBypass);
+    EXPECT_TRUE(options.parseFlag("--source-weights"));
+    EXPECT_TRUE(!options.albedoDemodulation && options.sourceWeights);
+    EXPECT_TRUE(options.parseFlag("--albedo-demodulation"));
+    const ModelConfig config = presetConfig("tiny", options);
+    EXPECT_TRUE(config.albedoDemodulation && config.sourceWeights && config.emissionBypass);
+    EXPECT_EQ(config.headChannels(), 3 * (8 + 3) + 2);
+    const ModelConfig plain = presetConfig("tiny");
+    EXPECT_FALSE(plain.albedoDemodulation || plain.sourceWeights || plain.emissionBypass);
+    EXPECT_EQ(plain.embedWidths, config.embedWidths);
+}
+
 TEST(TorchModel, SmallPresetHasTheDocumentedTensorNames) {
     AffinityModel model = makeModel(presetConfig("small"), 1);
     std::vector<std::string> names;
