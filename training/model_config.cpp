@@ -83,6 +83,8 @@ void validateConfig(const ModelConfig& config) {
     if (config.kernelSize < 1 || config.kernelSize > 63 || config.kernelSize % 2 == 0) {
         throw Error("model config: kernel size " + str(config.kernelSize) + " is not an odd number in 1..63");
     }
+    if (config.emissionLambda && !config.emissionBypass)
+        throw Error("model config: an emission lambda needs emission bypass (only bypassed emission has its own)");
 }
 
 std::vector<std::string> presetNames() { return {"tiny", "small", "paper"}; }
@@ -91,6 +93,7 @@ bool ModelOptions::parseFlag(const std::string& flag) {
     bool* option = flag == "--albedo-demodulation" ? &albedoDemodulation
                    : flag == "--source-weights"    ? &sourceWeights
                    : flag == "--emission-bypass"   ? &emissionBypass
+                   : flag == "--emission-lambda"   ? &emissionLambda
                                                    : nullptr;
     if (option) *option = true;
     return option != nullptr;
@@ -123,6 +126,7 @@ ModelConfig presetConfig(const std::string& name, const ModelOptions& options) {
     config.albedoDemodulation = options.albedoDemodulation;
     config.sourceWeights = options.sourceWeights;
     config.emissionBypass = options.emissionBypass;
+    config.emissionLambda = options.emissionLambda;
     return config;
 }
 
@@ -180,6 +184,7 @@ ModelConfig configFromWeights(const Weights& weights) {
     config.albedoDemodulation = flag("config.albedo_demodulation");
     config.emissionBypass = flag("config.emission_bypass");
     config.sourceWeights = flag("config.source_weights");
+    config.emissionLambda = flag("config.emission_lambda");
 
     for (int i = 0;; ++i) {
         const std::string name = "embed." + str(i) + ".weight";
@@ -213,7 +218,7 @@ ModelConfig configFromWeights(const Weights& weights) {
             throw Error(source + ": tensor " + spec.name + " has shape " + shapeText(view.shape) +
                         ", the model's structure needs " + shapeText(spec.shape) +
                         " (head outputs P = K (F + " + str(config.kernelChannels() - config.affinityFeatures) +
-                        ") + 2 = " + str(config.headChannels()) + ")");
+                        ") + " + str(config.emissionLambda ? 3 : 2) + " = " + str(config.headChannels()) + ")");
         }
     }
     for (const std::string& name : weights.names()) {
@@ -271,6 +276,7 @@ FlopCount flopCount(const ModelConfig& config) {
     flops.filterPerPixel += 8.0 * (E + A + C + config.affinityFeatures) + 3.0 * (E + A);
     if (config.albedoDemodulation) flops.filterPerPixel += 2.0 * 6.0;
     if (config.emissionBypass) flops.filterPerPixel += 3.0;
+    if (config.emissionLambda) flops.filterPerPixel += 4.0;  // its sigmoid
     return flops;
 }
 

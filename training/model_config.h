@@ -35,6 +35,10 @@ struct ModelConfig {
     // kernels: their radiance is accumulated but not filtered, and added back (docs/MODEL.md
     // section 1), so a light smaller than a pixel is not spread onto its neighbours.
     bool emissionBypass = false;
+    // The bypassed emission accumulates with its own learned lambda (one more head channel), so
+    // that a static light is averaged over frames while the filtered light follows the scene
+    // (docs/MODEL.md section 3). Needs emissionBypass.
+    bool emissionLambda = false;
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
     // Channels the kernels filter: RGB radiance, or demodulated diffuse RGB + specular RGB.
@@ -45,8 +49,9 @@ struct ModelConfig {
     }
     // Head channels per kernel: features, bandwidth, centre weight (and source weight).
     int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
-    // P = K kernelChannels() + 2: the kernels' parameters; temporal bandwidth, lambda.
-    int headChannels() const { return kernels * kernelChannels() + 2; }
+    // P = K kernelChannels() + 2 (+ 1): the kernels' parameters; temporal bandwidth, lambda
+    // (and the emission lambda).
+    int headChannels() const { return kernels * kernelChannels() + 2 + (emissionLambda ? 1 : 0); }
 };
 
 // The switches of ModelConfig that every preset leaves off, as a command line chooses them.
@@ -54,8 +59,9 @@ struct ModelOptions {
     bool albedoDemodulation = false;
     bool sourceWeights = false;
     bool emissionBypass = false;
+    bool emissionLambda = false;
     // Sets the switch that `flag` names (--albedo-demodulation, --source-weights,
-    // --emission-bypass); false for any other flag.
+    // --emission-bypass, --emission-lambda); false for any other flag.
     bool parseFlag(const std::string& flag);
 };
 

@@ -1,7 +1,9 @@
-// affinity_model_tool: creates randomly initialised weights files and describes weights files.
+// affinity_model_tool: creates randomly initialised weights files, describes weights files and
+// adds an emission lambda to a trained model (to fine-tune it from there).
 //   affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]
-//       [--emission-bypass] [--source-weights]
+//       [--emission-bypass] [--emission-lambda] [--source-weights]
 //   affinity_model_tool describe FILE.affw
+//   affinity_model_tool add-emission-lambda IN.affw OUT.affw
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -11,6 +13,7 @@
 #include "affinity/error.h"
 #include "affinity/weights.h"
 #include "model_config.h"
+#include "model_surgery.h"
 #include "torch_reference.h"
 
 namespace affinity::train {
@@ -18,8 +21,9 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]\n"
-    "           [--emission-bypass] [--source-weights]   (the model options of docs/MODEL.md)\n"
-    "       affinity_model_tool describe FILE.affw\n";
+    "           [--emission-bypass] [--emission-lambda] [--source-weights]   (the model options of docs/MODEL.md)\n"
+    "       affinity_model_tool describe FILE.affw\n"
+    "       affinity_model_tool add-emission-lambda IN.affw OUT.affw   (same function, one more head channel)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -79,7 +83,8 @@ int runDescribe(const std::vector<std::string>& args) {
     std::cout << "  filters        "
               << (config.albedoDemodulation ? "diffuse / albedo and specular (albedo demodulation)" : "radiance")
               << (config.sourceWeights ? ", neighbours weighed by source weights" : "")
-              << (config.emissionBypass ? ", emissive samples bypass the kernels" : "") << "\n";
+              << (config.emissionBypass ? ", emissive samples bypass the kernels" : "")
+              << (config.emissionLambda ? " with their own lambda" : "") << "\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];
@@ -92,6 +97,14 @@ int runDescribe(const std::vector<std::string>& args) {
                       spp, flops.perPixel(spp), flops.perPixel(spp) * 1920.0 * 1080.0 * 1e-9);
         std::cout << line;
     }
+    return 0;
+}
+
+int runAddEmissionLambda(const std::vector<std::string>& args) {
+    if (args.size() != 2) throw Error("add-emission-lambda: expected IN.affw OUT.affw");
+    if (args[0] == args[1]) throw Error("add-emission-lambda: the output must not overwrite the input");
+    writeWeightsFile(args[1], withEmissionLambda(Weights::fromFile(args[0])));
+    std::cout << "wrote " << args[1] << ": " << args[0] << " with an emission lambda (a copy of lambda)\n";
     return 0;
 }
 
@@ -108,6 +121,7 @@ int main(int argc, char** argv) {
     try {
         if (args[0] == "init") return affinity::train::runInit(rest);
         if (args[0] == "describe") return affinity::train::runDescribe(rest);
+        if (args[0] == "add-emission-lambda") return affinity::train::runAddEmissionLambda(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

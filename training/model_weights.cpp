@@ -29,6 +29,7 @@ std::vector<NamedTensor> modelTensors(const AffinityModel& model) {
     if (config.albedoDemodulation) integer("config.albedo_demodulation", 1);
     if (config.sourceWeights) integer("config.source_weights", 1);
     if (config.emissionBypass) integer("config.emission_bypass", 1);
+    if (config.emissionLambda) integer("config.emission_lambda", 1);
     return tensors;
 }
 

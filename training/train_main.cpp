@@ -23,6 +23,7 @@ constexpr const char* kUsage =
     "  --albedo-demodulation  a fresh model filters diffuse / albedo and specular (docs/MODEL.md)\n"
     "  --source-weights    a fresh model's kernels weigh each neighbour by a learned s (docs/MODEL.md)\n"
     "  --emission-bypass   a fresh model leaves emissive samples unfiltered (docs/MODEL.md)\n"
+    "  --emission-lambda   with --emission-bypass: the bypassed emission gets its own learned lambda\n"
     "  --steps N           total steps (default 1000); a resumed run continues up to N\n"
     "  --minutes M         stop this run after M minutes of wall time (default: no limit)\n"
     "  --batch B           crops per step (4)      --crop C      crop side (64)\n"

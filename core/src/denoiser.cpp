@@ -297,12 +297,16 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
         head.outChannels() != net.headChannels())
         throw Error("denoise: the model's last layers do not fit together");
     const int E = embedding.channels(), S = signal.channels(), C = filterIn.channels();
+    // Signal channels accumulated with lambda; the rest (the bypassed emission) with the emission
+    // lambda where the model has one.
+    const int lambdaChannels = net.emissionLambda ? S - 3 : S;
     const int tiles = (columns + kConvTileWidth - 1) / kConvTileWidth;
     const long long tasks = (long long)(end - begin) * tiles;
 #pragma omp parallel
     {
         std::vector<float> decoded(std::size_t(columns) * std::size_t(last.outChannels()));
         std::vector<float> params(std::size_t(columns) * std::size_t(head.outChannels()));
+        std::vector<float> emissionLambda(std::size_t(kConvTileWidth), 0.0f);
 #pragma omp for schedule(dynamic)
         for (long long task = 0; task < tasks; ++task) {
             const int y = begin + int(task / tiles);
@@ -339,6 +343,11 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
                 lambda[x] = o[K * G + 1];
             }
             sigmoidInPlace(lambda + x0, x1 - x0);
+            if (net.emissionLambda) {
+                for (int x = x0; x < x1; ++x)
+                    emissionLambda[std::size_t(x - x0)] = params[std::size_t(x) * std::size_t(head.outChannels()) + K * G + 2];
+                sigmoidInPlace(emissionLambda.data(), x1 - x0);
+            }
             // 3 (continued). history = (1 - lambda) current + lambda history, in place; the
             // kernels filter the first C channels of the accumulated signal.
             float* filtered = row(filterIn);
@@ -349,7 +358,9 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
                 for (int c = 0; c < E; ++c) h[c] = (1.0f - l) * e[c] + l * h[c];
                 const float* current = signal.pixel(y, x);
                 float* accumulated = historySignal.pixel(y, x);
-                for (int c = 0; c < S; ++c) accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
+                for (int c = 0; c < lambdaChannels; ++c) accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
+                const float le = emissionLambda[std::size_t(x - x0)];
+                for (int c = lambdaChannels; c < S; ++c) accumulated[c] = (1.0f - le) * current[c] + le * accumulated[c];
                 std::copy(accumulated, accumulated + C, filtered + std::size_t(x) * C);
             }
         }

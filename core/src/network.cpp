@@ -111,6 +111,9 @@ Network buildNetwork(const Weights& weights) {
     if (weights.has("config.albedo_demodulation")) n.albedoDemodulation = b.config("config.albedo_demodulation", 0, 1) == 1;
     if (weights.has("config.source_weights")) n.sourceWeights = b.config("config.source_weights", 0, 1) == 1;
     if (weights.has("config.emission_bypass")) n.emissionBypass = b.config("config.emission_bypass", 0, 1) == 1;
+    if (weights.has("config.emission_lambda")) n.emissionLambda = b.config("config.emission_lambda", 0, 1) == 1;
+    if (n.emissionLambda && !n.emissionBypass)
+        b.fail("config.emission_lambda needs config.emission_bypass: only bypassed emission has its own lambda");
 
     std::vector<DenseLayer> dense = b.embedding();
     n.embeddingWidths.push_back(dense.front().in);
@@ -137,7 +140,8 @@ Network buildNetwork(const Weights& weights) {
     if (n.head->outChannels() != n.headChannels())
         b.fail("'unet.head.weight' has " + std::to_string(n.head->outChannels()) + " outputs but K = " +
                std::to_string(n.kernels) + ", F = " + std::to_string(n.affinityFeatures) +
-               (n.sourceWeights ? " with source weights" : "") + " needs " + std::to_string(n.headChannels()));
+               (n.sourceWeights ? " with source weights" : "") + (n.emissionLambda ? " with an emission lambda" : "") +
+               " needs " + std::to_string(n.headChannels()));
     n.parameterCount = b.parameters();
     b.requireAllUsed();
     return n;

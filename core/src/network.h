@@ -25,12 +25,14 @@ struct Network {
     bool albedoDemodulation = false;  // the kernels filter diffuse / albedo and specular
     bool sourceWeights = false;       // each kernel weighs a neighbour q by a learned s(q)
     bool emissionBypass = false;      // emissive samples are accumulated but not filtered
+    bool emissionLambda = false;      // bypassed emission accumulates with its own learned lambda
     std::int64_t parameterCount = 0;
 
     // Head channels per kernel: features, bandwidth, centre weight (and source weight).
     int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
-    // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda).
-    int headChannels() const { return kernels * kernelChannels() + 2; }
+    // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda), + 1 with an
+    // emission lambda.
+    int headChannels() const { return kernels * kernelChannels() + 2 + (emissionLambda ? 1 : 0); }
     // Where the filtered and the only accumulated channels sit (core/src/filter_signal.h).
     SignalLayout signalLayout() const { return SignalLayout{albedoDemodulation, emissionBypass}; }
 };

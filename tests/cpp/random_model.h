@@ -20,6 +20,7 @@ struct ModelShape {
     bool albedoDemodulation = false;
     bool sourceWeights = false;
     bool emissionBypass = false;
+    bool emissionLambda = false;  // needs emissionBypass
 };
 
 inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shape, unsigned seed,
@@ -45,6 +46,7 @@ inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shap
     if (shape.albedoDemodulation) config("config.albedo_demodulation", 1);
     if (shape.sourceWeights) config("config.source_weights", 1);
     if (shape.emissionBypass) config("config.emission_bypass", 1);
+    if (shape.emissionLambda) config("config.emission_lambda", 1);
     int in = 18;
     for (std::size_t i = 0; i < shape.embedding.size(); ++i) {
         add("embed." + std::to_string(i) + ".weight", {shape.embedding[i], in}, in);
@@ -70,11 +72,12 @@ inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shap
         add(p + ".bias", {shape.encoder[l]}, 9 * inputs);
         in = shape.encoder[l];
     }
-    const int head = shape.kernels * (shape.affinityFeatures + (shape.sourceWeights ? 3 : 2)) + 2;
+    const int lambda = shape.kernels * (shape.affinityFeatures + (shape.sourceWeights ? 3 : 2)) + 1;
+    const int head = lambda + 1 + (shape.emissionLambda ? 1 : 0);
     add("unet.head.weight", {head, in, 1, 1}, in);
     add("unet.head.bias", {head}, in);
-    tensors.back().floats[head - 2] += headBiasTemporal;
-    tensors.back().floats[head - 1] += headBiasLambda;
+    tensors.back().floats[std::size_t(lambda - 1)] += headBiasTemporal;
+    tensors.back().floats[std::size_t(lambda)] += headBiasLambda;
     return tensors;
 }
 

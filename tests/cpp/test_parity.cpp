@@ -6,6 +6,9 @@
 #include <gtest/gtest.h>
 
 #include "affinity/denoiser.h"
+#include "affinity/error.h"
+#include "affinity/weights.h"
+#include "model_surgery.h"
 #include "random_model.h"
 #include "torch_reference.h"
 
@@ -53,6 +56,7 @@ TEST(Parity, FramesOfSeveralBands) {
     test::ModelShape shape;
     shape.albedoDemodulation = true;
     shape.emissionBypass = true;
+    shape.emissionLambda = true;
     const std::string path = temporaryPath("tall.affw");
     train::writeWeightsFile(path, test::randomModelTensors(shape, 8));
     expectParity(path, test::randomSequence(3, 6, 231, 2, 8));
@@ -69,11 +73,12 @@ TEST(Parity, SourceWeightedRandomWeights) {
 }
 
 TEST(Parity, AlbedoDemodulatedAndEmissionBypassingRandomWeights) {
-    for (unsigned seed : {3u, 4u, 6u}) {
+    for (unsigned seed : {3u, 4u, 6u, 9u}) {
         test::ModelShape shape;
         shape.albedoDemodulation = seed != 6;
         shape.sourceWeights = seed == 4;
         shape.emissionBypass = seed != 3;
+        shape.emissionLambda = seed == 6 || seed == 9;
         const std::string path = temporaryPath("demodulated" + std::to_string(seed) + ".affw");
         train::writeWeightsFile(path, test::randomModelTensors(shape, seed));
         std::vector<SampleFrame> frames = test::randomSequence(4, 23, 17, 3, seed);
@@ -93,6 +98,23 @@ TEST(Parity, AlbedoDemodulatedAndEmissionBypassingRandomWeights) {
     }
 }
 
+// A trained model given an emission lambda as a copy of its lambda computes the same, bit for bit
+// in the core, and the two implementations still agree on it.
+TEST(Parity, AddingAnEmissionLambdaKeepsTheFunction) {
+    const std::string original = std::string(AFFINITY_SOURCE_DIR) + "/core/models/small_demod_bypass.affw";
+    const std::string extended = temporaryPath("emission_lambda.affw");
+    train::writeWeightsFile(extended, train::withEmissionLambda(Weights::fromFile(original)));
+    const std::vector<SampleFrame> frames = test::randomSequence(3, 21, 18, 2, 12);
+    Denoiser before(Model::fromFile(original)), after(Model::fromFile(extended));
+    for (std::size_t t = 0; t < frames.size(); ++t)
+        EXPECT_EQ(before.denoise(frames[t]), after.denoise(frames[t])) << "frame " << t;
+    expectParity(extended, frames);
+    EXPECT_THROW(train::withEmissionLambda(Weights::fromFile(extended)), Error);  // already has one
+    const std::string radianceModel = std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw";
+    EXPECT_THROW(train::withEmissionLambda(Weights::fromFile(radianceModel)), Error);  // no bypass
+    std::filesystem::remove(extended);
+}
+
 TEST(Parity, EveryPresetAtInitialisation) {
     for (const std::string& preset : train::presetNames()) {
         for (int variant = 0; variant < 4; ++variant) {
@@ -101,6 +123,7 @@ TEST(Parity, EveryPresetAtInitialisation) {
             options.albedoDemodulation = variant == 1 || variant == 2;
             options.sourceWeights = variant == 2;
             options.emissionBypass = variant >= 2;
+            options.emissionLambda = variant == 3;
             train::writeInitialModel(train::presetConfig(preset, options), 7, path);
             expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
             std::filesystem::remove(path);

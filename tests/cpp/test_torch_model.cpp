@@ -227,11 +227,15 @@ TEST(TorchModel, InconsistentWeightsAreRejected) {
     tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
     tensors.push_back({"unet.extra", DType::Float32, {1}, {0.0f}, {}});
     rejects(tensors, "unet.extra");
-    for (const char* option : {"config.albedo_demodulation", "config.emission_bypass", "config.source_weights"}) {
+    for (const char* option : {"config.albedo_demodulation", "config.emission_bypass", "config.source_weights",
+                               "config.emission_lambda"}) {
         tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
         tensors.push_back({option, DType::Int32, {1}, {}, {2}});  // a switch is 0 or 1
         rejects(tensors, std::string(option) + " is 2, expected 0 or 1");
     }
+    tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
+    tensors.push_back({"config.emission_lambda", DType::Int32, {1}, {}, {1}});
+    rejects(tensors, "an emission lambda needs emission bypass");
 }
 
 TEST(TorchModel, ToolFacadeWritesTheSameModelForTheSameSeed) {
