@@ -141,7 +141,7 @@ double millisecondsSince(std::chrono::steady_clock::time_point start) {
 struct KernelMaps {
     std::vector<FeatureMap> features, bandwidth, centre;  // per kernel: F channels, 1, 1
     std::vector<FeatureMap> source;                       // per kernel, 1 channel (models with source weights)
-    FeatureMap temporalBandwidth, lambda;                 // 1 channel each
+    FeatureMap temporalBandwidth;                         // 1 channel
 
     KernelParams kernel(int k) const {
         const std::size_t i = std::size_t(k);
@@ -273,7 +273,6 @@ KernelMaps Denoiser::State::takeKernelMaps(const Network& net, int height, int w
         if (net.sourceWeights) maps.source.push_back(pool.take(ringRows, width, 1));
     }
     maps.temporalBandwidth = pool.take(ringRows, width, 1);
-    maps.lambda = pool.take(ringRows, width, 1);
     return maps;
 }
 
@@ -306,7 +305,8 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
     {
         std::vector<float> decoded(std::size_t(columns) * std::size_t(last.outChannels()));
         std::vector<float> params(std::size_t(columns) * std::size_t(head.outChannels()));
-        std::vector<float> emissionLambda(std::size_t(kConvTileWidth), 0.0f);
+        // A tile's lambda and emission lambda: only its accumulation reads them.
+        std::vector<float> lambda(kConvTileWidth), emissionLambda(kConvTileWidth);
 #pragma omp for schedule(dynamic)
         for (long long task = 0; task < tasks; ++task) {
             const int y = begin + int(task / tiles);
@@ -336,23 +336,19 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
                 if (source) sigmoidInPlace(source + x0, x1 - x0);
             }
             float* temporalBandwidth = row(maps.temporalBandwidth);
-            float* lambda = row(maps.lambda);
             for (int x = x0; x < x1; ++x) {
                 const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
                 temporalBandwidth[x] = o[K * G];
-                lambda[x] = o[K * G + 1];
+                lambda[std::size_t(x - x0)] = o[K * G + 1];
+                if (net.emissionLambda) emissionLambda[std::size_t(x - x0)] = o[K * G + 2];
             }
-            sigmoidInPlace(lambda + x0, x1 - x0);
-            if (net.emissionLambda) {
-                for (int x = x0; x < x1; ++x)
-                    emissionLambda[std::size_t(x - x0)] = params[std::size_t(x) * std::size_t(head.outChannels()) + K * G + 2];
-                sigmoidInPlace(emissionLambda.data(), x1 - x0);
-            }
+            sigmoidInPlace(lambda.data(), x1 - x0);
+            if (net.emissionLambda) sigmoidInPlace(emissionLambda.data(), x1 - x0);
             // 3 (continued). history = (1 - lambda) current + lambda history, in place; the
             // kernels filter the first C channels of the accumulated signal.
             float* filtered = row(filterIn);
             for (int x = x0; x < x1; ++x) {
-                const float l = lambda[x];
+                const float l = lambda[std::size_t(x - x0)];
                 const float* e = embedding.pixel(y, x);
                 float* h = historyEmbedding.pixel(y, x);
                 for (int c = 0; c < E; ++c) h[c] = (1.0f - l) * e[c] + l * h[c];
@@ -371,7 +367,6 @@ void Denoiser::State::give(KernelMaps& maps) {
     for (std::vector<FeatureMap>* list : {&maps.features, &maps.bandwidth, &maps.centre, &maps.source})
         for (FeatureMap& map : *list) pool.give(map);
     pool.give(maps.temporalBandwidth);
-    pool.give(maps.lambda);
 }
 
 void Denoiser::State::filterInBands(const Network& net, const UnetTail& tail, const FeatureMap& embedding,
