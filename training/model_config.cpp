@@ -123,10 +123,7 @@ ModelConfig presetConfig(const std::string& name, const ModelOptions& options) {
         for (const std::string& preset : presetNames()) known += (known.empty() ? "" : ", ") + preset;
         throw Error("unknown model preset '" + name + "' (known: " + known + ")");
     }
-    config.albedoDemodulation = options.albedoDemodulation;
-    config.sourceWeights = options.sourceWeights;
-    config.emissionBypass = options.emissionBypass;
-    config.emissionLambda = options.emissionLambda;
+    static_cast<ModelOptions&>(config) = options;
     return config;
 }
 

@@ -17,14 +17,8 @@ struct ConvStackSpec {
     int outWidth() const { return widths.empty() ? 0 : widths.back(); }
 };
 
-struct ModelConfig {
-    std::vector<int> embedWidths;         // output width of each embedding layer; the last is E
-    std::vector<ConvStackSpec> encoder;   // level 0 (full resolution) first
-    ConvStackSpec bottleneck;
-    std::vector<ConvStackSpec> decoder;   // decoder[l] runs at level l; as many as encoder levels
-    int kernels = 3;            // K: dilated affinity kernels, the last one also temporal
-    int affinityFeatures = 8;   // F: affinity features per kernel
-    int kernelSize = 5;         // T: spatial taps per side (odd)
+// The switches of a model that every preset leaves off, as a command line chooses them.
+struct ModelOptions {
     // Filter diffuse radiance divided by albedo (and specular as it is), then multiply the
     // albedo back (docs/MODEL.md section 6): texture detail need not survive the kernels.
     bool albedoDemodulation = false;
@@ -39,6 +33,20 @@ struct ModelConfig {
     // that a static light is averaged over frames while the filtered light follows the scene
     // (docs/MODEL.md section 3). Needs emissionBypass.
     bool emissionLambda = false;
+    // Sets the switch that `flag` names (--albedo-demodulation, --source-weights,
+    // --emission-bypass, --emission-lambda); false for any other flag.
+    bool parseFlag(const std::string& flag);
+};
+
+// A model's sizes and its switches.
+struct ModelConfig : ModelOptions {
+    std::vector<int> embedWidths;         // output width of each embedding layer; the last is E
+    std::vector<ConvStackSpec> encoder;   // level 0 (full resolution) first
+    ConvStackSpec bottleneck;
+    std::vector<ConvStackSpec> decoder;   // decoder[l] runs at level l; as many as encoder levels
+    int kernels = 3;            // K: dilated affinity kernels, the last one also temporal
+    int affinityFeatures = 8;   // F: affinity features per kernel
+    int kernelSize = 5;         // T: spatial taps per side (odd)
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
     // Channels the kernels filter: RGB radiance, or demodulated diffuse RGB + specular RGB.
@@ -52,17 +60,6 @@ struct ModelConfig {
     // P = K kernelChannels() + 2 (+ 1): the kernels' parameters; temporal bandwidth, lambda
     // (and the emission lambda).
     int headChannels() const { return kernels * kernelChannels() + 2 + (emissionLambda ? 1 : 0); }
-};
-
-// The switches of ModelConfig that every preset leaves off, as a command line chooses them.
-struct ModelOptions {
-    bool albedoDemodulation = false;
-    bool sourceWeights = false;
-    bool emissionBypass = false;
-    bool emissionLambda = false;
-    // Sets the switch that `flag` names (--albedo-demodulation, --source-weights,
-    // --emission-bypass, --emission-lambda); false for any other flag.
-    bool parseFlag(const std::string& flag);
 };
 
 // Throws affinity::Error naming the first inconsistency (sizes < 1, even T, level counts).

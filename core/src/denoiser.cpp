@@ -136,8 +136,8 @@ double millisecondsSince(std::chrono::steady_clock::time_point start) {
     return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
 
-// The per-pixel parameters of the filters (docs/MODEL.md section 5). Rings of a few dozen rows
-// (band_schedule.h) except the last kernel's features, which the next frame's temporal taps read.
+// The per-pixel parameters of the filters (docs/MODEL.md section 5). Rings of bandRingRows()
+// rows except the last kernel's features, which the next frame's temporal taps read.
 struct KernelMaps {
     std::vector<FeatureMap> features, bandwidth, centre;  // per kernel: F channels, 1, 1
     std::vector<FeatureMap> source;                       // per kernel, 1 channel (models with source weights)

@@ -26,6 +26,9 @@ public:
         return value;
     }
 
+    // An optional 0/1 switch: files written before it existed lack it, which reads as off.
+    bool flag(const std::string& name) { return weights_.has(name) && config(name, 0, 1) == 1; }
+
     // A conv "<prefix>.weight" [out, in, size, size] + "<prefix>.bias" [out] whose input count
     // must be `in` (-1: any).
     Conv2d conv(const std::string& prefix, int in, int size) {
@@ -107,11 +110,10 @@ Network buildNetwork(const Weights& weights) {
     n.affinityFeatures = b.config("config.affinity_features", 1, 64);
     n.tapSize = b.config("config.kernel_size", 1, 15);
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
-    // Optional: models written before albedo demodulation existed filter radiance.
-    if (weights.has("config.albedo_demodulation")) n.albedoDemodulation = b.config("config.albedo_demodulation", 0, 1) == 1;
-    if (weights.has("config.source_weights")) n.sourceWeights = b.config("config.source_weights", 0, 1) == 1;
-    if (weights.has("config.emission_bypass")) n.emissionBypass = b.config("config.emission_bypass", 0, 1) == 1;
-    if (weights.has("config.emission_lambda")) n.emissionLambda = b.config("config.emission_lambda", 0, 1) == 1;
+    n.albedoDemodulation = b.flag("config.albedo_demodulation");
+    n.sourceWeights = b.flag("config.source_weights");
+    n.emissionBypass = b.flag("config.emission_bypass");
+    n.emissionLambda = b.flag("config.emission_lambda");
     if (n.emissionLambda && !n.emissionBypass)
         b.fail("config.emission_lambda needs config.emission_bypass: only bypassed emission has its own lambda");
 
