@@ -41,21 +41,6 @@ void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& 
     }
 }
 
-void filteredPart(const FeatureMap& accumulated, const SignalLayout& layout, FeatureMap& filtered) {
-    const int channels = accumulated.channels();
-    if (channels != layout.channels())
-        throw Error("filter signal: an accumulated signal of " + std::to_string(channels) +
-                    " channels where the model accumulates " + std::to_string(layout.channels()));
-    const int kept = layout.filteredChannels();
-    filtered.resize(accumulated.height(), accumulated.width(), kept);
-    const long long pixels = (long long)accumulated.pixelCount();
-#pragma omp parallel for schedule(static)
-    for (long long p = 0; p < pixels; ++p) {
-        const float* in = accumulated.data() + std::size_t(p) * channels;
-        std::copy(in, in + kept, filtered.data() + std::size_t(p) * kept);
-    }
-}
-
 void radianceFromSignal(const FeatureMap& filtered, const FeatureMap& accumulated, const SignalLayout& layout,
                         float* out) {
     const int kept = layout.filteredChannels(), channels = layout.channels();

@@ -29,9 +29,6 @@ struct SignalLayout {
 // layout.channels().
 void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& layout, FeatureMap& signal);
 
-// The part of an accumulated signal the kernels filter (its first layout.filteredChannels()).
-void filteredPart(const FeatureMap& accumulated, const SignalLayout& layout, FeatureMap& filtered);
-
 // Radiance from a filtered signal and the accumulated signal it came from, whose unfiltered
 // channels hold the albedo to multiply back onto the diffuse light and the emitted radiance to
 // add. out: pixelCount() x 3 floats.
