@@ -29,12 +29,16 @@ def main() -> None:
     values: dict[tuple[str, int], dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     methods: list[str] = []
     spps: set[int] = set()
-    for row in csv.DictReader(open(results_csv)):
+    reader = csv.DictReader(open(results_csv))
+    # Results of benchmarks older than the tone-mapped temporal error lack its column.
+    metrics = [m for m in ("smape", "psnr", "flip", "temporal_error", "temporal_error_tonemapped")
+               if m in (reader.fieldnames or [])]
+    for row in reader:
         key = (row["method"], int(row["spp"]))
         spps.add(key[1])
         if row["method"] not in methods:
             methods.append(row["method"])
-        for metric in ("smape", "psnr", "flip", "temporal_error"):
+        for metric in metrics:
             values[key][metric].append(float(row[metric]))
     spp_list = sorted(s for s in spps if all((m, s) in values for m in methods if m.startswith("ours-")))
 
@@ -51,7 +55,9 @@ def main() -> None:
           "at inference (not retrained).\n")
     header = ["method", "parameters", "kFLOP/px", "ms / 1080p frame"]
     for s in spp_list:
-        header += [f"SMAPE {s}spp", f"PSNR {s}spp", f"FLIP {s}spp", f"temporal {s}spp"]
+        headings = {"smape": "SMAPE", "psnr": "PSNR", "flip": "FLIP", "temporal_error": "temporal",
+                    "temporal_error_tonemapped": "temporal tone-mapped"}
+        header += [f"{headings[m]} {s}spp" for m in metrics]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header))
     order = [m for m in methods if m.startswith("ours-")] + [m for m in methods if not m.startswith("ours-")]
@@ -61,13 +67,13 @@ def main() -> None:
         cells = [method, f"{r['parameters']:,}" if r else "", f"{r['kflop_per_pixel']:.1f}" if r else "",
                  f"{r['ms_per_frame']:.0f}" if r else ""]
         for s in spp_list:
-            cells += [mean(method, s, m) for m in ("smape", "psnr", "flip", "temporal_error")]
+            cells += [mean(method, s, m) for m in metrics]
         print("| " + " | ".join(cells) + " |")
     # Sizes timed but not benchmarked for quality (no trained weights yet).
     for label, r in speed.items():
         if f"ours-{label}" not in methods:
             cells = [f"{label} (not trained: speed only)", f"{r['parameters']:,}", f"{r['kflop_per_pixel']:.1f}",
-                     f"{r['ms_per_frame']:.0f}"] + ["-"] * (4 * len(spp_list))
+                     f"{r['ms_per_frame']:.0f}"] + ["-"] * (len(metrics) * len(spp_list))
             print("| " + " | ".join(cells) + " |")
 
 

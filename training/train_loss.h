@@ -2,7 +2,8 @@
 // The training loss of ALGORITHM.md section 7 over one sequence of frames:
 //   Loss = SMAPE(O, O*) + 0.25 SMAPE(dt O, dt O*) + 1e-5 (sum_k E[(a^k)^2] + E[b^2])
 //   SMAPE(A, B) = mean over pixels and channels of |A - B| / (|A| + |B| + 0.01)
-// where dt is the difference between consecutive frames. Plain ATen ops: autograd provides the
+// where dt is the difference between consecutive frames. An optional absolute temporal term
+// (LossWeights::absoluteTemporal) is off in the paper's loss. Plain ATen ops: autograd provides the
 // gradients (tests/cpp/test_training.cpp checks them against finite differences).
 #include <vector>
 
@@ -17,16 +18,27 @@ inline constexpr double kRegulariserWeight = 1e-5;
 // mean |a - b| / (|a| + |b| + 0.01) over every element.
 at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
 
+// Weights of the temporal terms; the defaults are the paper's loss. The absolute temporal term is
+//   mean |dt O - dt O*| / (mean |O*| + 0.01)   (means per crop, over pixels and channels)
+// the benchmark's temporal error (ALGORITHM.md section 10) per unit of the crop's brightness.
+// SMAPE of dt O weighs a flickering lamp like a flickering shadow; the benchmark, and the eye in a
+// tone-mapped frame, weigh flicker by its size, so this term lets bright pixels count as much.
+struct LossWeights {
+    double temporal = kTemporalWeight;
+    double absoluteTemporal = 0;
+};
+
 struct LossTerms {
-    at::Tensor total;        // scalar, differentiable
-    at::Tensor spatial;      // SMAPE(O, O*) averaged over frames
-    at::Tensor temporal;     // SMAPE(dt O, dt O*) averaged over frame pairs (0 for one frame)
+    at::Tensor total;             // scalar, differentiable
+    at::Tensor spatial;           // SMAPE(O, O*) averaged over frames
+    at::Tensor temporal;          // SMAPE(dt O, dt O*) averaged over frame pairs (0 for one frame)
+    at::Tensor absoluteTemporal;  // the absolute temporal term averaged over frame pairs
     at::Tensor regulariser;  // sum_k E[(a^k)^2] + E[b^2], averaged over frames
 };
 
 // outputs[t], references[t]: [B, 3, H, W]. bandwidths[t]: the K bandwidths a^k and the temporal
 // bandwidth b of frame t, each [B, 1, H, W] (empty vectors skip the regulariser).
 LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector<at::Tensor>& references,
-                       const std::vector<std::vector<at::Tensor>>& bandwidths);
+                       const std::vector<std::vector<at::Tensor>>& bandwidths, const LossWeights& weights = {});
 
 }  // namespace affinity::train

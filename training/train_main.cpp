@@ -31,6 +31,8 @@ constexpr const char* kUsage =
     "  --min-spp N --max-spp N   spp drawn per step (2..8)   --val-spp N   (4)\n"
     "  --lr X              Adam learning rate (1e-3)   --lr-half-life N   halve every N steps (0: off)\n"
     "  --clip X            gradient norm clipping (1; 0: off)\n"
+    "  --temporal-weight W weight of the temporal SMAPE term (0.25, the paper's)\n"
+    "  --absolute-temporal-weight W  weight of mean |dt O - dt O*| / mean |O*| (0; train_loss.h)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
     "  --device NAME       cpu (default), or cuda with a CUDA build of libtorch\n"
     "  --max-sequences N   use the first N training sequences only\n"
@@ -103,6 +105,8 @@ int main(int argc, char** argv) {
             else if (flag == "--lr") options.learningRate = real();
             else if (flag == "--lr-half-life") options.lrHalfLife = integer();
             else if (flag == "--clip") options.clipNorm = real();
+            else if (flag == "--temporal-weight") options.temporalWeight = real();
+            else if (flag == "--absolute-temporal-weight") options.absoluteTemporalWeight = real();
             else if (flag == "--val-every") options.valEvery = integer();
             else if (flag == "--checkpoint-every") options.checkpointEvery = integer();
             else if (flag == "--threads") options.threads = integer();

@@ -212,7 +212,7 @@ struct ForwardResult {
     torch::Tensor noisySmape;  // SMAPE of the noisy input over the sequence
 };
 
-ForwardResult forwardBatch(AffinityModel& model, const Batch& batch) {
+ForwardResult forwardBatch(AffinityModel& model, const Batch& batch, const LossWeights& weights) {
     RecurrentState state;
     std::vector<torch::Tensor> outputs;
     std::vector<std::vector<torch::Tensor>> bandwidths;
@@ -226,35 +226,42 @@ ForwardResult forwardBatch(AffinityModel& model, const Batch& batch) {
         bandwidths.push_back(std::move(frameBandwidths));
         noisy = noisy + smapeLoss(result.noisy.detach(), batch.references[t]);
     }
-    return {sequenceLoss(outputs, batch.references, bandwidths), noisy / double(batch.frames.size())};
+    return {sequenceLoss(outputs, batch.references, bandwidths, weights), noisy / double(batch.frames.size())};
 }
 
 struct Validation {
-    double loss = 0, smape = 0, temporal = 0, noisySmape = 0;
+    double loss = 0, smape = 0, temporal = 0, absoluteTemporal = 0, noisySmape = 0;
 };
 
-Validation validate(AffinityModel& model, const std::vector<Batch>& batches) {
+// loss is the training loss without the regulariser.
+Validation validate(AffinityModel& model, const std::vector<Batch>& batches, const LossWeights& weights) {
     Validation result;
     if (batches.empty()) return result;
     torch::NoGradGuard noGrad;
     model->eval();
     for (const Batch& batch : batches) {
-        const ForwardResult forward = forwardBatch(model, batch);
-        result.loss += forward.loss.spatial.item<double>() + kTemporalWeight * forward.loss.temporal.item<double>();
+        const ForwardResult forward = forwardBatch(model, batch, weights);
+        const double absoluteTemporal = forward.loss.absoluteTemporal.item<double>();
+        result.loss += forward.loss.spatial.item<double>() + weights.temporal * forward.loss.temporal.item<double>() +
+                       weights.absoluteTemporal * absoluteTemporal;
         result.smape += forward.loss.spatial.item<double>();
         result.temporal += forward.loss.temporal.item<double>();
+        result.absoluteTemporal += absoluteTemporal;
         result.noisySmape += forward.noisySmape.item<double>();
     }
     model->train();
     const double n = double(batches.size());
-    return {result.loss / n, result.smape / n, result.temporal / n, result.noisySmape / n};
+    return {result.loss / n, result.smape / n, result.temporal / n, result.absoluteTemporal / n,
+            result.noisySmape / n};
 }
 
 void checkOptions(const TrainOptions& o) {
     if (o.trainDir.empty() || o.outDir.empty()) throw Error("training needs a data folder and an output folder");
     if (o.steps < 1 || o.batch < 1 || o.crop < 8 || o.frames < 1 || o.minSpp < 1 || o.maxSpp < o.minSpp ||
-        o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1) {
-        throw Error("training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads)");
+        o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1 ||
+        !(o.temporalWeight >= 0) || !(o.absoluteTemporalWeight >= 0)) {
+        throw Error("training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
+                    "loss weights >= 0)");
     }
 }
 
@@ -267,6 +274,7 @@ double learningRateAt(const TrainOptions& options, int step) {
 
 TrainSummary runTraining(const TrainOptions& options) {
     checkOptions(options);
+    const LossWeights lossWeights{options.temporalWeight, options.absoluteTemporalWeight};
     torch::set_num_threads(options.threads);
     const torch::Device device(options.device);  // "cpu", "cuda", "cuda:1", ...
     const auto start = std::chrono::steady_clock::now();
@@ -322,7 +330,7 @@ TrainSummary runTraining(const TrainOptions& options) {
     std::ofstream csv(csvFile, newCsv ? std::ios::trunc : std::ios::app);
     if (newCsv) {
         csv << "step,elapsed_s,lr,train_loss,train_smape,train_temporal,train_regulariser,train_noisy_smape,"
-               "val_loss,val_smape,val_temporal,val_noisy_smape\n";
+               "val_loss,val_smape,val_temporal,val_noisy_smape,val_absolute_temporal\n";
     }
 
     TrainSummary summary;
@@ -352,11 +360,12 @@ TrainSummary runTraining(const TrainOptions& options) {
 
     auto evaluate = [&](double trainLoss, double trainSmape, double trainTemporal, double trainReg,
                         double trainNoisy) {
-        const Validation v = validate(model, val);
+        const Validation v = validate(model, val, lossWeights);
         char line[512];
-        std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
+        std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
                       elapsedBefore + elapsed(), learningRateAt(options, step), trainLoss, trainSmape,
-                      trainTemporal, trainReg, trainNoisy, v.loss, v.smape, v.temporal, v.noisySmape);
+                      trainTemporal, trainReg, trainNoisy, v.loss, v.smape, v.temporal, v.noisySmape,
+                      v.absoluteTemporal);
         csv << line;
         csv.flush();
         if (!val.empty()) {
@@ -392,7 +401,7 @@ TrainSummary runTraining(const TrainOptions& options) {
             static_cast<torch::optim::AdamOptions&>(group.options()).lr(learningRateAt(options, step));
         }
         optimizer.zero_grad();
-        const ForwardResult forward = forwardBatch(model, batch);
+        const ForwardResult forward = forwardBatch(model, batch, lossWeights);
         const double lossValue = forward.loss.total.item<double>();
         if (std::isfinite(lossValue)) {
             forward.loss.total.backward();

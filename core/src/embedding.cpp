@@ -60,28 +60,49 @@ void compressSamples(int count, float depthScale, float* input, float* radiance)
 
 // Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (radiance from the sanitised
 // `radiance`, albedo and emissive flag from the raw `samples`) over its spp samples in order to
-// `sums`, starting from 0 when `first`.
+// `sums`, starting from 0 when `first`. Branch-free so that it vectorises: a sample's radiance is
+// added to both its own sums and the other kind's times 0 (adding +0 leaves a sum unchanged, and
+// the sanitised radiance is finite).
 void addSampleSums(const float* samples, const float* radiance, int pixels, int spp, bool first, float* sums) {
     constexpr int kSums = Embedding::kSampleSumChannels;
+    static_assert(Embedding::kSumSpecular == Embedding::kSumDiffuse + 3 &&
+                      Embedding::kSumEmittedSpecular == Embedding::kSumEmittedDiffuse + 3,
+                  "diffuse and specular sums are adjacent, as in the radiance");
     for (int p = 0; p < pixels; ++p) {
+        // The pixel's sums live in locals while its samples are added (no aliasing with the
+        // inputs to fear, so they stay in registers).
         float* o = sums + std::size_t(p) * kSums;
-        if (first) std::fill(o, o + kSums, 0.0f);
+        float lit[kRadianceChannels], emitted[kRadianceChannels], albedo[3];
+        for (int c = 0; c < kRadianceChannels; ++c) {
+            lit[c] = first ? 0.0f : o[Embedding::kSumDiffuse + c];
+            emitted[c] = first ? 0.0f : o[Embedding::kSumEmittedDiffuse + c];
+        }
+        for (int c = 0; c < 3; ++c) albedo[c] = first ? 0.0f : o[Embedding::kSumAlbedo + c];
         for (int s = 0; s < spp; ++s) {
             const std::size_t sample = std::size_t(p) * spp + std::size_t(s);
             const float* r = radiance + sample * kRadianceChannels;
             const float* raw = samples + sample * kFeatureCount;
             // Bypassed light: an emitter or the sky seen directly (through a mirror or glass the
             // path's choices make it as noisy as any other light). False for NaN flags.
-            const bool emissive = raw[channel::kEmissive] > 0.5f && !(raw[channel::kSpecularBounce] > 0.5f);
-            float* light = o + (emissive ? Embedding::kSumEmittedDiffuse : Embedding::kSumDiffuse);
-            for (int c = 0; c < 3; ++c) light[c] += r[c];
-            light = o + (emissive ? Embedding::kSumEmittedSpecular : Embedding::kSumSpecular);
-            for (int c = 0; c < 3; ++c) light[c] += r[3 + c];
+            // (bitwise &: no branch to mispredict).
+            const float isEmitted =
+                float(int(raw[channel::kEmissive] > 0.5f) & int(!(raw[channel::kSpecularBounce] > 0.5f)));
+            const float isLit = 1.0f - isEmitted;
+            for (int c = 0; c < kRadianceChannels; ++c) {
+                lit[c] += r[c] * isLit;
+                emitted[c] += r[c] * isEmitted;
+            }
             for (int c = 0; c < 3; ++c) {
                 const float a = raw[channel::kAlbedo + c];
-                o[Embedding::kSumAlbedo + c] += a > 0.0f && a <= 3.40282347e38f ? a : 0.0f;  // false for NaN
+                const bool finitePositive = int(a > 0.0f) & int(a <= 3.40282347e38f);  // false for NaN
+                albedo[c] += finitePositive ? a : 0.0f;
             }
         }
+        for (int c = 0; c < kRadianceChannels; ++c) {
+            o[Embedding::kSumDiffuse + c] = lit[c];
+            o[Embedding::kSumEmittedDiffuse + c] = emitted[c];
+        }
+        for (int c = 0; c < 3; ++c) o[Embedding::kSumAlbedo + c] = albedo[c];
     }
 }
 

@@ -14,7 +14,7 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["smape", "relmse", "psnr", "temporal_error", "flip", "ms_per_megapixel"]
+__all__ = ["smape", "relmse", "psnr", "temporal_error", "tonemapped_temporal_error", "flip", "ms_per_megapixel"]
 
 
 def smape(image: Any, reference: Any) -> float:
@@ -47,6 +47,25 @@ def temporal_error(
     exactly as the reference does.
     """
     return _core.temporal_error(output, previous_output, reference, previous_reference, motion, valid)
+
+
+def tonemap(image: Any) -> np.ndarray:
+    """x / (1 + x) after clamping negatives to 0: the tone map of ``psnr``, values in [0, 1)."""
+    linear = np.maximum(np.asarray(image, np.float32), 0.0)
+    return np.ascontiguousarray(linear / (1.0 + linear))
+
+
+def tonemapped_temporal_error(
+    output: Any, previous_output: Any, reference: Any, previous_reference: Any, motion: Any, valid: Any
+) -> float:
+    """``temporal_error`` of the tone-mapped images (``tonemap``, as ``psnr`` sees them).
+
+    The linear temporal error counts flicker by its size in radiance, so a few flickering lamp
+    pixels outweigh everything else in a frame; on a display a lamp is white either way. This one
+    counts flicker as a viewer sees it: at most 1 per pixel and channel.
+    """
+    return _core.temporal_error(tonemap(output), tonemap(previous_output), tonemap(reference),
+                                tonemap(previous_reference), motion, valid)
 
 
 def flip(image: Any, reference: Any) -> float:

@@ -23,9 +23,12 @@ namespace fs = std::filesystem;
 
 namespace {
 
+// Every term switched on, with weights unlike the defaults, so the gradient check covers them all.
+const train::LossWeights kAllTerms{0.5, 0.3};
+
 double lossValue(const std::vector<torch::Tensor>& outputs, const std::vector<torch::Tensor>& references,
                  const std::vector<std::vector<torch::Tensor>>& bandwidths) {
-    return train::sequenceLoss(outputs, references, bandwidths).total.item<double>();
+    return train::sequenceLoss(outputs, references, bandwidths, kAllTerms).total.item<double>();
 }
 
 }  // namespace
@@ -49,6 +52,27 @@ TEST(TrainingLoss, TermsFollowTheDefinition) {
     EXPECT_NEAR(terms.temporal.item<double>(), temporal, 1e-6);
     EXPECT_NEAR(terms.regulariser.item<double>(), 9.0 + 4.0, 1e-5);
     EXPECT_NEAR(terms.total.item<double>(), spatial + 0.25 * temporal + 1e-5 * 13.0, 1e-6);
+    EXPECT_EQ(terms.absoluteTemporal.item<double>(), 0.0);  // off in the paper's loss
+}
+
+TEST(TrainingLoss, AbsoluteTemporalTermWeighsFlickerBySizePerCropBrightness) {
+    // Crop 0: the output steps by 1 where the reference steps by 0.5, on a reference of mean 1.5.
+    // Crop 1: a lamp of 100 flickers by 20 in one of four pixels; elsewhere 0, everything still.
+    torch::Tensor o0 = torch::zeros({2, 3, 2, 2}), o1 = torch::zeros({2, 3, 2, 2});
+    torch::Tensor r0 = torch::zeros({2, 3, 2, 2}), r1 = torch::zeros({2, 3, 2, 2});
+    o0[0].fill_(1.0), o1[0].fill_(2.0), r0[0].fill_(1.0), r1[0].fill_(1.5);
+    o0[1].select(1, 0).select(1, 0).fill_(100.0), o1[1].select(1, 0).select(1, 0).fill_(120.0);
+    r0[1].select(1, 0).select(1, 0).fill_(100.0), r1[1].select(1, 0).select(1, 0).fill_(100.0);
+    const train::LossTerms terms = train::sequenceLoss({o0, o1}, {r0, r1}, {}, {0.25, 2.0});
+    const double crop0 = 0.5 / (1.5 + 0.01), crop1 = (20.0 / 4) / (100.0 / 4 + 0.01);
+    EXPECT_NEAR(terms.absoluteTemporal.item<double>(), (crop0 + crop1) / 2, 1e-6);
+    // The relative (SMAPE) term sees the lamp's flicker as no bigger than a shadow's.
+    const double smapeCrop1 = (20.0 / (20.0 + 0.0 + 0.01)) / 4;
+    EXPECT_NEAR(terms.temporal.item<double>(), (0.5 / (1.0 + 0.5 + 0.01) + smapeCrop1) / 2, 1e-6);
+    EXPECT_NEAR(terms.total.item<double>(),
+                terms.spatial.item<double>() + 0.25 * terms.temporal.item<double>() +
+                    2.0 * terms.absoluteTemporal.item<double>(),
+                1e-6);
 }
 
 TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
@@ -62,7 +86,7 @@ TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
         bandwidths.push_back({(torch::randn({2, 1, 4, 3}, options) * 30).requires_grad_(true),
                               (torch::randn({2, 1, 4, 3}, options) * 30).requires_grad_(true)});
     }
-    train::sequenceLoss(outputs, references, bandwidths).total.backward();
+    train::sequenceLoss(outputs, references, bandwidths, kAllTerms).total.backward();
     const double step = 1e-6;
     auto check = [&](torch::Tensor& tensor) {
         const torch::Tensor gradient = tensor.grad().clone();

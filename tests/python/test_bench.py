@@ -16,7 +16,7 @@ import affinity
 from affinity.bench import data, report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-NUMERIC_COLUMNS = ("smape", "relmse", "psnr", "flip", "temporal_error", "ms_per_frame", "ms_per_mpx",
+NUMERIC_COLUMNS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "ms_per_frame", "ms_per_mpx",
                    "render_s_per_frame", "total_s_per_frame")
 
 
@@ -54,7 +54,8 @@ def test_every_method_ran_and_every_metric_is_finite(bench: tuple[pathlib.Path, 
     for row in read_rows(out / "per_frame.csv"):
         values = [row[c] for c in ("smape", "relmse", "psnr", "flip", "ms")]
         assert all(math.isfinite(float(v)) for v in values), row
-        assert (row["temporal_error"] == "nan") == (row["frame"] == "0"), row
+        for column in ("temporal_error", "temporal_error_tonemapped"):
+            assert (row[column] == "nan") == (row["frame"] == "0"), row
 
 
 def test_ours_beats_the_noisy_input_on_every_scene_at_every_spp(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:

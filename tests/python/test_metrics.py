@@ -72,6 +72,22 @@ def test_temporal_error_is_zero_when_the_output_follows_the_reference() -> None:
         metrics.temporal_error(reference, previous, reference, previous, motion[:, :, :1], valid)
 
 
+def test_tonemapped_temporal_error_by_hand() -> None:
+    # Still 1x1 frames: a lamp of 100 flickering to 120 and a shadow of 0 flickering to 1, against
+    # references that do not change. Linear: |20| and |1|. Tone-mapped: 120/121 - 100/101 and 1/2.
+    still = {"motion": np.zeros((1, 1, 2), np.float32), "valid": np.ones((1, 1), np.float32)}
+    lamp = {"output": image(120), "previous_output": image(100), "reference": image(100),
+            "previous_reference": image(100), **still}
+    shadow = {"output": image(1), "previous_output": image(0), "reference": image(0),
+              "previous_reference": image(0), **still}
+    assert metrics.temporal_error(**lamp) == pytest.approx(20.0)
+    assert metrics.tonemapped_temporal_error(**lamp) == pytest.approx(120 / 121 - 100 / 101, abs=1e-7)  # float32 tone map
+    assert metrics.tonemapped_temporal_error(**shadow) == pytest.approx(0.5, rel=1e-6)
+    # Negative radiance is clamped to 0 first, as for PSNR.
+    shadow["output"] = image(-3)
+    assert metrics.tonemapped_temporal_error(**shadow) == 0.0
+
+
 def test_flip_is_zero_for_identical_images_and_grows_with_the_error() -> None:
     rng = np.random.default_rng(2)
     reference = rng.random((32, 32, 3), np.float32)

@@ -26,6 +26,7 @@ class FrameResult:
     psnr: float
     flip: float
     temporal_error: float  # NaN on the first frame (no previous frame)
+    temporal_error_tonemapped: float  # likewise
     seconds: float         # wall time of the method's call on this frame (fastest of the timing runs)
 
 
@@ -44,7 +45,7 @@ class SequenceResult:
 
     def mean(self, metric: str) -> float:
         values = [getattr(f, metric) for f in self.frames]
-        if metric == "temporal_error":
+        if metric.startswith("temporal_error"):
             values = [v for v in values[1:] if not np.isnan(v)]  # frames 2..N
         return float(np.mean(values)) if values else float("nan")
 
@@ -91,13 +92,14 @@ def measure(outputs: list[np.ndarray], seconds: list[float], frames: list[dict[s
     results = []
     for t, (output, frame) in enumerate(zip(outputs, frames)):
         reference = frame["reference"]
-        temporal = float("nan")
+        temporal = tonemapped_temporal = float("nan")
         if t > 0:
-            temporal = metrics.temporal_error(output, outputs[t - 1], reference, frames[t - 1]["reference"],
-                                              frame["motion"], frame["valid"])
+            pair = (output, outputs[t - 1], reference, frames[t - 1]["reference"], frame["motion"], frame["valid"])
+            temporal = metrics.temporal_error(*pair)
+            tonemapped_temporal = metrics.tonemapped_temporal_error(*pair)
         results.append(FrameResult(t, metrics.smape(output, reference), metrics.relmse(output, reference),
                                    metrics.psnr(output, reference), metrics.flip(output, reference), temporal,
-                                   seconds[t]))
+                                   tonemapped_temporal, seconds[t]))
     return results
 
 

@@ -27,9 +27,10 @@ SUMMARY_COLUMNS = (
     ("psnr", "PSNR (dB)", "{:.2f}"),
     ("flip", "FLIP", "{:.4f}"),
     ("temporal_error", "temporal error", "{:.4f}"),
+    ("temporal_error_tonemapped", "temporal error, tone-mapped", "{:.4f}"),
     ("ms_per_mpx", "ms/Mpx", "{:.0f}"),
 )
-METRICS = ("smape", "relmse", "psnr", "flip", "temporal_error")
+METRICS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped")
 
 
 # --- writing ---------------------------------------------------------------------------------
