@@ -10,6 +10,7 @@
 #include <torch/torch.h>
 
 #include "affinity/denoiser.h"
+#include "affinity/error.h"
 #include "affinity/frame_io.h"
 #include "affinity/metrics.h"
 #include "affinity_ops.h"
@@ -145,6 +146,30 @@ TEST(TrainingAugmentation, WarpCommutesWithEveryTransform) {
 // One to two minutes: render a tiny fixed dataset with the sample renderer, train the tiny
 // preset on it for 80 steps, and require the validation loss to fall well below its starting value; then
 // the exported weights load in the core and match the torch model frame by frame.
+TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
+    train::TrainOptions options;
+    options.trainDir = "unused-train";
+    options.outDir = "unused-out";
+    for (double bad : {-0.5, double(NAN)}) {
+        options.temporalWeight = bad;
+        EXPECT_THROW(
+            {
+                try {
+                    train::runTraining(options);
+                } catch (const Error& e) {
+                    EXPECT_NE(std::string(e.what()).find("loss weights"), std::string::npos) << e.what();
+                    throw;
+                }
+            },
+            Error);
+        options.temporalWeight = 0.25;
+        options.absoluteTemporalWeight = bad;
+        EXPECT_THROW(train::runTraining(options), Error);
+        options.absoluteTemporalWeight = 0;
+    }
+    EXPECT_FALSE(fs::exists("unused-out"));
+}
+
 TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     const fs::path root = fs::temp_directory_path() / "affinity_training_smoke";
     fs::remove_all(root);
