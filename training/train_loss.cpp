@@ -5,6 +5,7 @@
 #include <ATen/ATen.h>
 
 #include "affinity/error.h"
+#include "affinity_ops.h"
 
 namespace affinity::train {
 
@@ -14,23 +15,53 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference) {
 
 namespace {
 
-// mean |dt O - dt O*| / (mean |O*| + 0.01), the means taken per crop of the batch.
-at::Tensor absoluteTemporalLoss(const at::Tensor& change, const at::Tensor& referenceChange,
-                                const at::Tensor& reference) {
-    const std::vector<std::int64_t> perCrop{1, 2, 3};
-    const at::Tensor brightness = reference.abs().mean(perCrop) + kSmapeEpsilon;
-    return ((change - referenceChange).abs().mean(perCrop) / brightness).mean();
+// The temporal terms of one frame pair. mask [B, 1, H, W] (1: the pixel counts) or undefined
+// (every pixel counts); the means run over counted pixels and the channels.
+struct TemporalPair {
+    at::Tensor change, referenceChange, mask;
+
+    at::Tensor maskedMean(const at::Tensor& values, at::IntArrayRef dims) const {
+        if (!mask.defined()) return values.mean(dims);
+        const at::Tensor counted = (mask * at::ones_like(values)).sum(dims).clamp_min(1.0);
+        return (values * mask).sum(dims) / counted;
+    }
+    at::Tensor smape() const {
+        const at::Tensor error = (change - referenceChange).abs() / (change.abs() + referenceChange.abs() + kSmapeEpsilon);
+        return maskedMean(error, {0, 1, 2, 3});
+    }
+    // mean |dt O - dt O*| / (mean |O*| + 0.01), the means taken per crop of the batch.
+    at::Tensor absolute(const at::Tensor& reference) const {
+        const std::vector<std::int64_t> perCrop{1, 2, 3};
+        const at::Tensor brightness = reference.abs().mean(perCrop) + kSmapeEpsilon;
+        return (maskedMean((change - referenceChange).abs(), perCrop) / brightness).mean();
+    }
+};
+
+// 1 where frame t's history is valid and its warp target lies inside the crop (as the
+// benchmark's temporal error counts pixels).
+at::Tensor countedPixels(const FrameMotion& frame) {
+    const std::int64_t height = frame.motion.size(2), width = frame.motion.size(3);
+    const at::Tensor motion = at::nan_to_num(frame.motion, 0.0);
+    const at::Tensor xs = at::arange(width, motion.options()).view({1, 1, width});
+    const at::Tensor ys = at::arange(height, motion.options()).view({1, height, 1});
+    const at::Tensor px = motion.select(1, 0) + xs, py = motion.select(1, 1) + ys;
+    const at::Tensor inside = (px >= 0) & (px <= double(width - 1)) & (py >= 0) & (py <= double(height - 1));
+    return ((frame.valid.select(1, 0) > 0.5) & inside).unsqueeze(1).to(frame.motion.scalar_type());
 }
 
 }  // namespace
 
 LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector<at::Tensor>& references,
-                       const std::vector<std::vector<at::Tensor>>& bandwidths, const LossWeights& weights) {
+                       const std::vector<std::vector<at::Tensor>>& bandwidths, const LossWeights& weights,
+                       const std::vector<FrameMotion>& motions) {
     if (outputs.empty() || outputs.size() != references.size()) {
         throw Error("sequenceLoss: need as many references as outputs (and at least one)");
     }
     if (!bandwidths.empty() && bandwidths.size() != outputs.size()) {
         throw Error("sequenceLoss: bandwidths must be empty or one entry per frame");
+    }
+    if (weights.warpedTemporal && motions.size() != outputs.size()) {
+        throw Error("sequenceLoss: the warped temporal terms need one motion per frame");
     }
     const std::size_t frames = outputs.size();
     const at::TensorOptions options = outputs[0].options();
@@ -40,12 +71,16 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     for (std::size_t t = 0; t < frames; ++t) {
         spatial = spatial + smapeLoss(outputs[t], references[t]);
         if (t > 0) {
-            const at::Tensor change = outputs[t] - outputs[t - 1];
-            const at::Tensor referenceChange = references[t] - references[t - 1];
-            temporal = temporal + smapeLoss(change, referenceChange);
-            if (weights.absoluteTemporal != 0) {
-                absoluteTemporal = absoluteTemporal + absoluteTemporalLoss(change, referenceChange, references[t]);
+            TemporalPair pair;
+            if (weights.warpedTemporal) {
+                const at::Tensor& motion = motions[t].motion;
+                pair = {outputs[t] - warpBilinear(outputs[t - 1], motion),
+                        references[t] - warpBilinear(references[t - 1], motion), countedPixels(motions[t])};
+            } else {
+                pair = {outputs[t] - outputs[t - 1], references[t] - references[t - 1], at::Tensor()};
             }
+            temporal = temporal + pair.smape();
+            if (weights.absoluteTemporal != 0) absoluteTemporal = absoluteTemporal + pair.absolute(references[t]);
         }
         if (!bandwidths.empty()) {
             for (const at::Tensor& bandwidth : bandwidths[t]) regulariser = regulariser + bandwidth.square().mean();

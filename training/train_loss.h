@@ -23,9 +23,20 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
 // the benchmark's temporal error (ALGORITHM.md section 10) per unit of the crop's brightness.
 // SMAPE of dt O weighs a flickering lamp like a flickering shadow; the benchmark, and the eye in a
 // tone-mapped frame, weigh flicker by its size, so this term lets bright pixels count as much.
+// With warpedTemporal, dt O is O_t - W O_{t-1} (W: the previous frame warped by frame t's motion,
+// as the benchmark's temporal error does), counted only where the history is valid and the warp
+// lands inside the crop: the change a still camera would see, so the term measures flicker and
+// not the image moving.
 struct LossWeights {
     double temporal = kTemporalWeight;
     double absoluteTemporal = 0;
+    bool warpedTemporal = false;
+};
+
+// Frame t's motion [B, 2, H, W] (pixels into frame t-1) and history validity [B, 1, H, W].
+struct FrameMotion {
+    at::Tensor motion;
+    at::Tensor valid;
 };
 
 struct LossTerms {
@@ -37,8 +48,10 @@ struct LossTerms {
 };
 
 // outputs[t], references[t]: [B, 3, H, W]. bandwidths[t]: the K bandwidths a^k and the temporal
-// bandwidth b of frame t, each [B, 1, H, W] (empty vectors skip the regulariser).
+// bandwidth b of frame t, each [B, 1, H, W] (empty vectors skip the regulariser). motions: one
+// per frame, needed only with weights.warpedTemporal.
 LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector<at::Tensor>& references,
-                       const std::vector<std::vector<at::Tensor>>& bandwidths, const LossWeights& weights = {});
+                       const std::vector<std::vector<at::Tensor>>& bandwidths, const LossWeights& weights = {},
+                       const std::vector<FrameMotion>& motions = {});
 
 }  // namespace affinity::train

@@ -33,6 +33,7 @@ constexpr const char* kUsage =
     "  --clip X            gradient norm clipping (1; 0: off)\n"
     "  --temporal-weight W weight of the temporal SMAPE term (0.25, the paper's)\n"
     "  --absolute-temporal-weight W  weight of mean |dt O - dt O*| / mean |O*| (0; train_loss.h)\n"
+    "  --warped-temporal   dt O = O_t - O_{t-1} warped by the motion, valid pixels only (train_loss.h)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
     "  --device NAME       cpu (default), or cuda with a CUDA build of libtorch\n"
     "  --max-sequences N   use the first N training sequences only\n"
@@ -57,6 +58,10 @@ int main(int argc, char** argv) {
             const std::string& flag = args[i];
             if (flag == "--no-augment") {
                 options.augment = false;
+                continue;
+            }
+            if (flag == "--warped-temporal") {
+                options.warpedTemporal = true;
                 continue;
             }
             if (flag == "--fresh") {

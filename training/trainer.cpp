@@ -226,7 +226,9 @@ ForwardResult forwardBatch(AffinityModel& model, const Batch& batch, const LossW
         bandwidths.push_back(std::move(frameBandwidths));
         noisy = noisy + smapeLoss(result.noisy.detach(), batch.references[t]);
     }
-    return {sequenceLoss(outputs, batch.references, bandwidths, weights), noisy / double(batch.frames.size())};
+    std::vector<FrameMotion> motions;
+    for (const FrameInput& frame : batch.frames) motions.push_back({frame.motion, frame.valid});
+    return {sequenceLoss(outputs, batch.references, bandwidths, weights, motions), noisy / double(batch.frames.size())};
 }
 
 struct Validation {
@@ -274,7 +276,7 @@ double learningRateAt(const TrainOptions& options, int step) {
 
 TrainSummary runTraining(const TrainOptions& options) {
     checkOptions(options);
-    const LossWeights lossWeights{options.temporalWeight, options.absoluteTemporalWeight};
+    const LossWeights lossWeights{options.temporalWeight, options.absoluteTemporalWeight, options.warpedTemporal};
     torch::set_num_threads(options.threads);
     const torch::Device device(options.device);  // "cpu", "cuda", "cuda:1", ...
     const auto start = std::chrono::steady_clock::now();

@@ -25,11 +25,12 @@ namespace fs = std::filesystem;
 namespace {
 
 // Every term switched on, with weights unlike the defaults, so the gradient check covers them all.
-const train::LossWeights kAllTerms{0.5, 0.3};
+const train::LossWeights kAllTerms{0.5, 0.3, true};
 
 double lossValue(const std::vector<torch::Tensor>& outputs, const std::vector<torch::Tensor>& references,
-                 const std::vector<std::vector<torch::Tensor>>& bandwidths) {
-    return train::sequenceLoss(outputs, references, bandwidths, kAllTerms).total.item<double>();
+                 const std::vector<std::vector<torch::Tensor>>& bandwidths,
+                 const std::vector<train::FrameMotion>& motions) {
+    return train::sequenceLoss(outputs, references, bandwidths, kAllTerms, motions).total.item<double>();
 }
 
 }  // namespace
@@ -76,18 +77,70 @@ TEST(TrainingLoss, AbsoluteTemporalTermWeighsFlickerBySizePerCropBrightness) {
                 1e-6);
 }
 
+TEST(TrainingLoss, WarpedTemporalTermsWithoutMotionEqualThePlainOnes) {
+    torch::manual_seed(4);
+    std::vector<torch::Tensor> outputs, references;
+    std::vector<train::FrameMotion> motions;
+    for (int t = 0; t < 3; ++t) {
+        outputs.push_back(torch::rand({2, 3, 5, 4}) * 3);
+        references.push_back(torch::rand({2, 3, 5, 4}) * 3);
+        motions.push_back({torch::zeros({2, 2, 5, 4}), torch::ones({2, 1, 5, 4})});
+    }
+    const train::LossTerms plain = train::sequenceLoss(outputs, references, {}, {0.25, 1.0, false});
+    const train::LossTerms warped = train::sequenceLoss(outputs, references, {}, {0.25, 1.0, true}, motions);
+    EXPECT_NEAR(warped.temporal.item<double>(), plain.temporal.item<double>(), 1e-6);
+    EXPECT_NEAR(warped.absoluteTemporal.item<double>(), plain.absoluteTemporal.item<double>(), 1e-6);
+    EXPECT_GT(plain.temporal.item<double>(), 0.1);
+    EXPECT_THROW(train::sequenceLoss(outputs, references, {}, {0.25, 1.0, true}), Error);  // no motions
+}
+
+TEST(TrainingLoss, WarpedTemporalTermsIgnoreMotionAndCountOnlyPixelsWithHistory) {
+    // The image moves one pixel right between the frames; the output is twice the reference
+    // (a bias that does not change). Unwarped, dt O = 2 dt O*: flicker where there is none.
+    // Warped by the motion, both changes are 0 wherever the warp stays inside the crop.
+    torch::manual_seed(6);
+    const torch::Tensor r0 = torch::rand({1, 3, 4, 6}) + 0.5;
+    torch::Tensor r1 = torch::roll(r0, {1}, {3});
+    r1.select(3, 0).fill_(7.0);  // the new column: no history (its warp target x = -1 is outside)
+    const torch::Tensor motion = torch::cat({torch::full({1, 1, 4, 6}, -1.0), torch::zeros({1, 1, 4, 6})}, 1);
+    const std::vector<torch::Tensor> outputs{2 * r0, 2 * r1}, references{r0, r1};
+    const std::vector<train::FrameMotion> motions{{motion, torch::ones({1, 1, 4, 6})},
+                                                  {motion, torch::ones({1, 1, 4, 6})}};
+    const train::LossTerms plain = train::sequenceLoss(outputs, references, {}, {0.25, 1.0, false});
+    const train::LossTerms warped = train::sequenceLoss(outputs, references, {}, {0.25, 1.0, true}, motions);
+    EXPECT_GT(plain.temporal.item<double>(), 0.1);
+    EXPECT_GT(plain.absoluteTemporal.item<double>(), 0.1);
+    EXPECT_NEAR(warped.temporal.item<double>(), 0.0, 1e-6);
+    EXPECT_NEAR(warped.absoluteTemporal.item<double>(), 0.0, 1e-6);
+
+    // Flicker of +1 at one counted pixel (x = 3): temporal SMAPE over the 4 x 5 counted pixels x
+    // 3 channels is 1 / (1 + 0 + 0.01) per channel there; a flicker in the uncounted column 0, or
+    // where the history is invalid, changes nothing.
+    torch::Tensor flickering = (2 * r1).clone();
+    flickering.select(3, 3).select(2, 1) += 1.0;
+    flickering.select(3, 0) += 5.0;
+    torch::Tensor valid = torch::ones({1, 1, 4, 6});
+    valid.select(3, 5).select(2, 2).fill_(0.0);
+    flickering.select(3, 5).select(2, 2) += 9.0;
+    const std::vector<train::FrameMotion> withInvalid{{motion, valid}, {motion, valid}};
+    const train::LossTerms one = train::sequenceLoss({2 * r0, flickering}, references, {}, {0.25, 1.0, true}, withInvalid);
+    EXPECT_NEAR(one.temporal.item<double>(), 3 * (1.0 / 1.01) / (3 * 19.0), 1e-5);
+}
+
 TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
     torch::manual_seed(5);
     const auto options = torch::TensorOptions().dtype(torch::kDouble);
     std::vector<torch::Tensor> outputs, references;
     std::vector<std::vector<torch::Tensor>> bandwidths;
+    std::vector<train::FrameMotion> motions;
     for (int t = 0; t < 3; ++t) {
+        motions.push_back({torch::rand({2, 2, 4, 3}, options) * 3 - 1.5, (torch::rand({2, 1, 4, 3}, options) > 0.2).to(torch::kDouble)});
         outputs.push_back((torch::rand({2, 3, 4, 3}, options) * 2 - 0.3).requires_grad_(true));
         references.push_back(torch::rand({2, 3, 4, 3}, options) * 2);
         bandwidths.push_back({(torch::randn({2, 1, 4, 3}, options) * 30).requires_grad_(true),
                               (torch::randn({2, 1, 4, 3}, options) * 30).requires_grad_(true)});
     }
-    train::sequenceLoss(outputs, references, bandwidths, kAllTerms).total.backward();
+    train::sequenceLoss(outputs, references, bandwidths, kAllTerms, motions).total.backward();
     const double step = 1e-6;
     auto check = [&](torch::Tensor& tensor) {
         const torch::Tensor gradient = tensor.grad().clone();
@@ -96,9 +149,9 @@ TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
         for (std::int64_t i = 0; i < flat.numel(); i += 5) {
             const double saved = flat[i].item<double>();
             flat[i].fill_(saved + step);
-            const double plus = lossValue(outputs, references, bandwidths);
+            const double plus = lossValue(outputs, references, bandwidths, motions);
             flat[i].fill_(saved - step);
-            const double minus = lossValue(outputs, references, bandwidths);
+            const double minus = lossValue(outputs, references, bandwidths, motions);
             flat[i].fill_(saved);
             const double numeric = (plus - minus) / (2 * step);
             EXPECT_NEAR(gradient.view({-1})[i].item<double>(), numeric, 1e-6 + 1e-4 * std::abs(numeric)) << i;
