@@ -243,12 +243,10 @@ Validation validate(AffinityModel& model, const std::vector<Batch>& batches, con
     model->eval();
     for (const Batch& batch : batches) {
         const ForwardResult forward = forwardBatch(model, batch, weights);
-        const double absoluteTemporal = forward.loss.absoluteTemporal.item<double>();
-        result.loss += forward.loss.spatial.item<double>() + weights.temporal * forward.loss.temporal.item<double>() +
-                       weights.absoluteTemporal * absoluteTemporal;
+        result.loss += forward.loss.total.item<double>() - kRegulariserWeight * forward.loss.regulariser.item<double>();
         result.smape += forward.loss.spatial.item<double>();
         result.temporal += forward.loss.temporal.item<double>();
-        result.absoluteTemporal += absoluteTemporal;
+        result.absoluteTemporal += forward.loss.absoluteTemporal.item<double>();
         result.noisySmape += forward.noisySmape.item<double>();
     }
     model->train();

@@ -60,9 +60,9 @@ void compressSamples(int count, float depthScale, float* input, float* radiance)
 
 // Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (radiance from the sanitised
 // `radiance`, albedo and emissive flag from the raw `samples`) over its spp samples in order to
-// `sums`, starting from 0 when `first`. Branch-free so that it vectorises: a sample's radiance is
-// added to both its own sums and the other kind's times 0 (adding +0 leaves a sum unchanged, and
-// the sanitised radiance is finite).
+// `sums`, starting from 0 when `first`. Branch-free (the flag and albedo tests mispredicted on
+// noisy data): a sample's radiance is added to both its own sums and the other kind's times 0
+// (adding +0 leaves a sum unchanged, and the sanitised radiance is finite).
 void addSampleSums(const float* samples, const float* radiance, int pixels, int spp, bool first, float* sums) {
     constexpr int kSums = Embedding::kSampleSumChannels;
     static_assert(Embedding::kSumSpecular == Embedding::kSumDiffuse + 3 &&
