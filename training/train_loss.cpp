@@ -13,6 +13,15 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference) {
     return ((image - reference).abs() / (image.abs() + reference.abs() + kSmapeEpsilon)).mean();
 }
 
+at::Tensor cellMeans(const at::Tensor& image, int cell) {
+    if (cell < 1) throw Error("cellMeans: the cell size must be at least 1");
+    const std::int64_t padBottom = (cell - image.size(2) % cell) % cell, padRight = (cell - image.size(3) % cell) % cell;
+    const std::vector<std::int64_t> padding{0, padRight, 0, padBottom};
+    const at::Tensor sums = at::avg_pool2d(at::constant_pad_nd(image, padding, 0.0), cell);
+    const at::Tensor counts = at::avg_pool2d(at::constant_pad_nd(at::ones_like(image.narrow(1, 0, 1)), padding, 0.0), cell);
+    return sums / counts;
+}
+
 namespace {
 
 // The temporal terms of one frame pair. mask [B, 1, H, W] (1: the pixel counts) or undefined
@@ -66,10 +75,13 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     const std::size_t frames = outputs.size();
     const at::TensorOptions options = outputs[0].options();
     at::Tensor spatial = at::zeros({}, options), temporal = at::zeros({}, options);
-    at::Tensor absoluteTemporal = at::zeros({}, options);
+    at::Tensor absoluteTemporal = at::zeros({}, options), coarse = at::zeros({}, options);
     at::Tensor regulariser = at::zeros({}, options);
     for (std::size_t t = 0; t < frames; ++t) {
         spatial = spatial + smapeLoss(outputs[t], references[t]);
+        if (weights.coarse != 0) {
+            coarse = coarse + smapeLoss(cellMeans(outputs[t], weights.coarseCell), cellMeans(references[t], weights.coarseCell));
+        }
         if (t > 0) {
             TemporalPair pair;
             if (weights.warpedTemporal) {
@@ -91,9 +103,11 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     const double pairs = double(std::max<std::size_t>(frames - 1, 1));
     terms.temporal = temporal / pairs;
     terms.absoluteTemporal = absoluteTemporal / pairs;
+    terms.coarse = coarse / double(frames);
     terms.regulariser = regulariser / double(frames);
     terms.total = terms.spatial + weights.temporal * terms.temporal +
-                  weights.absoluteTemporal * terms.absoluteTemporal + kRegulariserWeight * terms.regulariser;
+                  weights.absoluteTemporal * terms.absoluteTemporal + weights.coarse * terms.coarse +
+                  kRegulariserWeight * terms.regulariser;
     return terms;
 }
 

@@ -2,8 +2,8 @@
 // The training loss of ALGORITHM.md section 7 over one sequence of frames:
 //   Loss = SMAPE(O, O*) + 0.25 SMAPE(dt O, dt O*) + 1e-5 (sum_k E[(a^k)^2] + E[b^2])
 //   SMAPE(A, B) = mean over pixels and channels of |A - B| / (|A| + |B| + 0.01)
-// where dt is the difference between consecutive frames. An optional absolute temporal term
-// (LossWeights::absoluteTemporal) is off in the paper's loss. Plain ATen ops: autograd provides the
+// where dt is the difference between consecutive frames. Optional terms (LossWeights: absolute
+// temporal, coarse) are off in the paper's loss. Plain ATen ops: autograd provides the
 // gradients (tests/cpp/test_training.cpp checks them against finite differences).
 #include <vector>
 
@@ -18,6 +18,10 @@ inline constexpr double kRegulariserWeight = 1e-5;
 // mean |a - b| / (|a| + |b| + 0.01) over every element.
 at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
 
+// [B, C, H, W] -> [B, C, ceil(H / cell), ceil(W / cell)]: the mean of each cell x cell block, a
+// partial block at the bottom or right edge averaged over the pixels it has.
+at::Tensor cellMeans(const at::Tensor& image, int cell);
+
 // Weights of the temporal terms; the defaults are the paper's loss. The absolute temporal term is
 //   mean |dt O - dt O*| / (mean |O*| + 0.01)   (means per crop, over pixels and channels)
 // the benchmark's temporal error (ALGORITHM.md section 10) per unit of the crop's brightness.
@@ -27,10 +31,20 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
 // as the benchmark's temporal error does), counted only where the history is valid and the warp
 // lands inside the crop: the change a still camera would see, so the term measures flicker and
 // not the image moving.
+//
+// The coarse term is SMAPE(C O, C O*), C the mean over cells of coarseCell x coarseCell pixels
+// (partial cells at the crop's edge averaged over their pixels). Pixel SMAPE is minimised by the
+// median of what the input allows, and against a noisy (Noise2Noise) target by the median of
+// that target: where radiance is heavy-tailed (caustics, small lights seen through glossy
+// bounces) the median lies below the mean and the output comes out dark. A cell's mean averages
+// coarseCell^2 pixels of the target, so its median is close to its mean: the term asks the filter
+// to spread a rare bright sample's energy over its neighbourhood rather than drop it.
 struct LossWeights {
     double temporal = kTemporalWeight;
     double absoluteTemporal = 0;
     bool warpedTemporal = false;
+    double coarse = 0;
+    int coarseCell = 8;
 };
 
 // Frame t's motion [B, 2, H, W] (pixels into frame t-1) and history validity [B, 1, H, W].
@@ -44,6 +58,7 @@ struct LossTerms {
     at::Tensor spatial;           // SMAPE(O, O*) averaged over frames
     at::Tensor temporal;          // SMAPE(dt O, dt O*) averaged over frame pairs (0 for one frame)
     at::Tensor absoluteTemporal;  // the absolute temporal term averaged over frame pairs
+    at::Tensor coarse;            // SMAPE of the cell means averaged over frames
     at::Tensor regulariser;  // sum_k E[(a^k)^2] + E[b^2], averaged over frames
 };
 

@@ -34,6 +34,8 @@ constexpr const char* kUsage =
     "  --temporal-weight W weight of the temporal SMAPE term (0.25, the paper's)\n"
     "  --absolute-temporal-weight W  weight of mean |dt O - dt O*| / mean |O*| (0; train_loss.h)\n"
     "  --warped-temporal   dt O = O_t - O_{t-1} warped by the motion, valid pixels only (train_loss.h)\n"
+    "  --coarse-weight W   weight of SMAPE of cell means, against dark bias (0; train_loss.h)\n"
+    "  --coarse-cell N     cell side of that term, pixels (8)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
     "  --device NAME       cpu (default), or cuda with a CUDA build of libtorch\n"
     "  --max-sequences N   use the first N training sequences only\n"
@@ -112,6 +114,8 @@ int main(int argc, char** argv) {
             else if (flag == "--clip") options.clipNorm = real();
             else if (flag == "--temporal-weight") options.temporalWeight = real();
             else if (flag == "--absolute-temporal-weight") options.absoluteTemporalWeight = real();
+            else if (flag == "--coarse-weight") options.coarseWeight = real();
+            else if (flag == "--coarse-cell") options.coarseCell = integer();
             else if (flag == "--val-every") options.valEvery = integer();
             else if (flag == "--checkpoint-every") options.checkpointEvery = integer();
             else if (flag == "--threads") options.threads = integer();

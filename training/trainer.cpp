@@ -232,7 +232,7 @@ ForwardResult forwardBatch(AffinityModel& model, const Batch& batch, const LossW
 }
 
 struct Validation {
-    double loss = 0, smape = 0, temporal = 0, absoluteTemporal = 0, noisySmape = 0;
+    double loss = 0, smape = 0, temporal = 0, absoluteTemporal = 0, noisySmape = 0, coarse = 0;
 };
 
 // loss is the training loss without the regulariser.
@@ -248,20 +248,21 @@ Validation validate(AffinityModel& model, const std::vector<Batch>& batches, con
         result.temporal += forward.loss.temporal.item<double>();
         result.absoluteTemporal += forward.loss.absoluteTemporal.item<double>();
         result.noisySmape += forward.noisySmape.item<double>();
+        result.coarse += forward.loss.coarse.item<double>();
     }
     model->train();
     const double n = double(batches.size());
     return {result.loss / n, result.smape / n, result.temporal / n, result.absoluteTemporal / n,
-            result.noisySmape / n};
+            result.noisySmape / n, result.coarse / n};
 }
 
 void checkOptions(const TrainOptions& o) {
     if (o.trainDir.empty() || o.outDir.empty()) throw Error("training needs a data folder and an output folder");
     if (o.steps < 1 || o.batch < 1 || o.crop < 8 || o.frames < 1 || o.minSpp < 1 || o.maxSpp < o.minSpp ||
         o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1 ||
-        !(o.temporalWeight >= 0) || !(o.absoluteTemporalWeight >= 0)) {
+        !(o.temporalWeight >= 0) || !(o.absoluteTemporalWeight >= 0) || !(o.coarseWeight >= 0) || o.coarseCell < 1) {
         throw Error("training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
-                    "loss weights >= 0)");
+                    "loss weights >= 0, coarse cell >= 1)");
     }
 }
 
@@ -274,7 +275,8 @@ double learningRateAt(const TrainOptions& options, int step) {
 
 TrainSummary runTraining(const TrainOptions& options) {
     checkOptions(options);
-    const LossWeights lossWeights{options.temporalWeight, options.absoluteTemporalWeight, options.warpedTemporal};
+    const LossWeights lossWeights{options.temporalWeight, options.absoluteTemporalWeight, options.warpedTemporal,
+                                  options.coarseWeight, options.coarseCell};
     torch::set_num_threads(options.threads);
     const torch::Device device(options.device);  // "cpu", "cuda", "cuda:1", ...
     const auto start = std::chrono::steady_clock::now();
@@ -330,7 +332,7 @@ TrainSummary runTraining(const TrainOptions& options) {
     std::ofstream csv(csvFile, newCsv ? std::ios::trunc : std::ios::app);
     if (newCsv) {
         csv << "step,elapsed_s,lr,train_loss,train_smape,train_temporal,train_regulariser,train_noisy_smape,"
-               "val_loss,val_smape,val_temporal,val_noisy_smape,val_absolute_temporal\n";
+               "val_loss,val_smape,val_temporal,val_noisy_smape,val_absolute_temporal,val_coarse\n";
     }
 
     TrainSummary summary;
@@ -362,10 +364,10 @@ TrainSummary runTraining(const TrainOptions& options) {
                         double trainNoisy) {
         const Validation v = validate(model, val, lossWeights);
         char line[512];
-        std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
+        std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
                       elapsedBefore + elapsed(), learningRateAt(options, step), trainLoss, trainSmape,
                       trainTemporal, trainReg, trainNoisy, v.loss, v.smape, v.temporal, v.noisySmape,
-                      v.absoluteTemporal);
+                      v.absoluteTemporal, v.coarse);
         csv << line;
         csv.flush();
         if (!val.empty()) {

@@ -30,6 +30,8 @@ struct TrainOptions {
     double temporalWeight = 0.25;         // weight of SMAPE(dt O, dt O*), the paper's 0.25
     double absoluteTemporalWeight = 0;    // weight of the absolute temporal term (train_loss.h); 0 in the paper
     bool warpedTemporal = false;          // temporal terms on O_t - warped O_{t-1} (train_loss.h); off in the paper
+    double coarseWeight = 0;              // weight of SMAPE of cell means (train_loss.h); 0 in the paper
+    int coarseCell = 8;                   // cell side of the coarse term, pixels
     double clipNorm = 1.0;      // gradient norm clipping (0: off)
     int valEvery = 50;          // validation and a loss.csv row every valEvery steps
     int checkpointEvery = 100;  // checkpoint every checkpointEvery steps (and at the end)

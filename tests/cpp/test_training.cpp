@@ -25,7 +25,8 @@ namespace fs = std::filesystem;
 namespace {
 
 // Every term switched on, with weights unlike the defaults, so the gradient check covers them all.
-const train::LossWeights kAllTerms{0.5, 0.3, true};
+// Coarse cells of 2 pixels on 4 x 3 images: the right column is a partial cell.
+const train::LossWeights kAllTerms{0.5, 0.3, true, 0.7, 2};
 
 double lossValue(const std::vector<torch::Tensor>& outputs, const std::vector<torch::Tensor>& references,
                  const std::vector<std::vector<torch::Tensor>>& bandwidths,
@@ -55,6 +56,35 @@ TEST(TrainingLoss, TermsFollowTheDefinition) {
     EXPECT_NEAR(terms.regulariser.item<double>(), 9.0 + 4.0, 1e-5);
     EXPECT_NEAR(terms.total.item<double>(), spatial + 0.25 * temporal + 1e-5 * 13.0, 1e-6);
     EXPECT_EQ(terms.absoluteTemporal.item<double>(), 0.0);  // off in the paper's loss
+    EXPECT_EQ(terms.coarse.item<double>(), 0.0);
+}
+
+TEST(TrainingLoss, CellMeansAverageBlocksAndPartialBlocksOverTheirPixels) {
+    // 3 x 5 image, cells of 2: blocks rows {0,1},{2} x columns {0,1},{2,3},{4}.
+    const torch::Tensor image = torch::arange(15, torch::kDouble).view({1, 1, 3, 5});
+    const torch::Tensor means = train::cellMeans(image, 2);
+    ASSERT_EQ(means.sizes(), (std::vector<std::int64_t>{1, 1, 2, 3}));
+    const double expected[2][3] = {{(0 + 1 + 5 + 6) / 4.0, (2 + 3 + 7 + 8) / 4.0, (4 + 9) / 2.0},
+                                   {(10 + 11) / 2.0, (12 + 13) / 2.0, 14.0}};
+    for (int y = 0; y < 2; ++y)
+        for (int x = 0; x < 3; ++x) EXPECT_NEAR(means[0][0][y][x].item<double>(), expected[y][x], 1e-12) << y << x;
+    EXPECT_THROW(train::cellMeans(image, 0), Error);
+}
+
+TEST(TrainingLoss, CoarseTermSeesLostEnergyButNotEnergyMovedWithinACell) {
+    // Reference: a 4 x 4 crop of 1. Output A keeps the energy but puts it in one pixel per 2 x 2
+    // cell (4, 0, 0, 0): bad per pixel, perfect per cell. Output B drops a firefly's share and is
+    // uniformly 0.8: the coarse term sees the 20% loss in every cell.
+    const torch::Tensor reference = torch::ones({1, 3, 4, 4});
+    torch::Tensor concentrated = torch::zeros({1, 3, 4, 4});
+    concentrated.slice(2, 0, 4, 2).slice(3, 0, 4, 2).fill_(4.0);
+    const train::LossWeights coarseOnly{0.25, 0, false, 1.5, 2};
+    const train::LossTerms a = train::sequenceLoss({concentrated}, {reference}, {}, coarseOnly);
+    EXPECT_NEAR(a.coarse.item<double>(), 0.0, 1e-6);
+    EXPECT_NEAR(a.spatial.item<double>(), (3.0 / 5.01 + 3 * (1.0 / 1.01)) / 4, 1e-6);
+    const train::LossTerms b = train::sequenceLoss({torch::full({1, 3, 4, 4}, 0.8)}, {reference}, {}, coarseOnly);
+    EXPECT_NEAR(b.coarse.item<double>(), 0.2 / 1.81, 1e-6);
+    EXPECT_NEAR(b.total.item<double>(), b.spatial.item<double>() + 1.5 * b.coarse.item<double>(), 1e-6);
 }
 
 TEST(TrainingLoss, AbsoluteTemporalTermWeighsFlickerBySizePerCropBrightness) {
@@ -219,7 +249,12 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
         options.absoluteTemporalWeight = bad;
         EXPECT_THROW(train::runTraining(options), Error);
         options.absoluteTemporalWeight = 0;
+        options.coarseWeight = bad;
+        EXPECT_THROW(train::runTraining(options), Error);
+        options.coarseWeight = 0;
     }
+    options.coarseCell = 0;
+    EXPECT_THROW(train::runTraining(options), Error);
     EXPECT_FALSE(fs::exists("unused-out"));
 }
 
