@@ -138,17 +138,23 @@ at::Tensor radianceFromSignal(const at::Tensor& filtered, const at::Tensor& unfi
     return radiance;
 }
 
-at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
-    checkImage(previous, "the warped buffer", 0);
+WarpTargets warpTargets(const at::Tensor& motion) {
     checkImage(motion, "motion", 2);
-    const std::int64_t batch = previous.size(0), channels = previous.size(1);
-    const std::int64_t height = previous.size(2), width = previous.size(3);
+    const std::int64_t height = motion.size(2), width = motion.size(3);
     const at::Tensor clean = at::nan_to_num(motion, 0.0);
     const at::Tensor xs = at::arange(width, clean.options()).view({1, 1, width});
     const at::Tensor ys = at::arange(height, clean.options()).view({1, height, 1});
+    return {clean.select(1, 0) + xs, clean.select(1, 1) + ys};
+}
+
+at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
+    checkImage(previous, "the warped buffer", 0);
+    const std::int64_t batch = previous.size(0), channels = previous.size(1);
+    const std::int64_t height = previous.size(2), width = previous.size(3);
+    const WarpTargets target = warpTargets(motion);
     // Clamping the position is the same as clamping both bilinear taps to the border.
-    const at::Tensor px = (clean.select(1, 0) + xs).clamp(0, double(width - 1));
-    const at::Tensor py = (clean.select(1, 1) + ys).clamp(0, double(height - 1));
+    const at::Tensor px = target.x.clamp(0, double(width - 1));
+    const at::Tensor py = target.y.clamp(0, double(height - 1));
     const at::Tensor x0f = px.floor().detach(), y0f = py.floor().detach();
     const at::Tensor fx = (px - x0f).unsqueeze(1), fy = (py - y0f).unsqueeze(1);
     const at::Tensor x0 = x0f.to(at::kLong), y0 = y0f.to(at::kLong);

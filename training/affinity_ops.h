@@ -40,6 +40,13 @@ at::Tensor radianceFromSignal(const at::Tensor& filtered, const at::Tensor& unfi
 // (non-finite motion reads as 0). Gradients flow to `previous` and to `motion`.
 at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion);
 
+// Where warpBilinear looks in the previous frame, before clamping: x + motion_x and y + motion_y,
+// each [B, H, W] (non-finite motion reads as 0).
+struct WarpTargets {
+    at::Tensor x, y;
+};
+WarpTargets warpTargets(const at::Tensor& motion);
+
 // 2x2 max pooling, ceil mode: an odd edge keeps its last row/column.
 at::Tensor maxPool2x2(const at::Tensor& input);
 // out(y, x) = in(y / 2, x / 2) (integer division) for an output of height x width.

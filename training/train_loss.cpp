@@ -50,10 +50,7 @@ struct TemporalPair {
 // benchmark's temporal error counts pixels).
 at::Tensor countedPixels(const FrameMotion& frame) {
     const std::int64_t height = frame.motion.size(2), width = frame.motion.size(3);
-    const at::Tensor motion = at::nan_to_num(frame.motion, 0.0);
-    const at::Tensor xs = at::arange(width, motion.options()).view({1, 1, width});
-    const at::Tensor ys = at::arange(height, motion.options()).view({1, height, 1});
-    const at::Tensor px = motion.select(1, 0) + xs, py = motion.select(1, 1) + ys;
+    const auto [px, py] = warpTargets(frame.motion);
     const at::Tensor inside = (px >= 0) & (px <= double(width - 1)) & (py >= 0) & (py <= double(height - 1));
     return ((frame.valid.select(1, 0) > 0.5) & inside).unsqueeze(1).to(frame.motion.scalar_type());
 }
