@@ -91,14 +91,18 @@ void cameraChange(const Matrix4& a, const Matrix4& b, double& degrees, double& d
     distance = std::sqrt(distance);
 }
 
+// Milliseconds since `start`.
+double millisecondsSince(std::chrono::steady_clock::time_point start) {
+    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+}
+
 // Appends the time since the previous mark to a report's stage list.
 class StageClock {
 public:
     explicit StageClock(DenoiseReport& report) : report_(report) {}
     void mark(const char* stage) {
-        const auto now = std::chrono::steady_clock::now();
-        report_.stageMilliseconds.emplace_back(stage, std::chrono::duration<double, std::milli>(now - last_).count());
-        last_ = now;
+        report_.stageMilliseconds.emplace_back(stage, millisecondsSince(last_));
+        last_ = std::chrono::steady_clock::now();
     }
     // Stages that ran interleaved (band by band), timed apart by the caller; restarts the clock.
     void add(const char* stage, double milliseconds) {
@@ -130,11 +134,6 @@ struct UnetTail {
 // streamed) 32/64/128/256/all rows gave a peak of 1331/1336/1310/1348/1627 MiB and equal time
 // within this VM's noise.
 constexpr int kBandRows = 128;
-
-// Milliseconds since `start`.
-double millisecondsSince(std::chrono::steady_clock::time_point start) {
-    return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
-}
 
 // The per-pixel parameters of the filters (docs/MODEL.md section 5). Rings of bandRingRows()
 // rows except the last kernel's features, which the next frame's temporal taps read.
