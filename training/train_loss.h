@@ -9,10 +9,11 @@
 
 #include <ATen/core/Tensor.h>
 
+#include "loss_weights.h"
+
 namespace affinity::train {
 
 inline constexpr double kSmapeEpsilon = 0.01;
-inline constexpr double kTemporalWeight = 0.25;
 inline constexpr double kRegulariserWeight = 1e-5;
 
 // mean |a - b| / (|a| + |b| + 0.01) over every element.
@@ -22,30 +23,6 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
 // partial block at the bottom or right edge averaged over the pixels it has.
 at::Tensor cellMeans(const at::Tensor& image, int cell);
 
-// Weights of the temporal terms; the defaults are the paper's loss. The absolute temporal term is
-//   mean |dt O - dt O*| / (mean |O*| + 0.01)   (means per crop, over pixels and channels)
-// the benchmark's temporal error (ALGORITHM.md section 10) per unit of the crop's brightness.
-// SMAPE of dt O weighs a flickering lamp like a flickering shadow; the benchmark, and the eye in a
-// tone-mapped frame, weigh flicker by its size, so this term lets bright pixels count as much.
-// With warpedTemporal, dt O is O_t - W O_{t-1} (W: the previous frame warped by frame t's motion,
-// as the benchmark's temporal error does), counted only where the history is valid and the warp
-// lands inside the crop: the change a still camera would see, so the term measures flicker and
-// not the image moving.
-//
-// The coarse term is SMAPE(C O, C O*), C the mean over cells of coarseCell x coarseCell pixels
-// (partial cells at the crop's edge averaged over their pixels). Pixel SMAPE is minimised by the
-// median of what the input allows, and against a noisy (Noise2Noise) target by the median of
-// that target: where radiance is heavy-tailed (caustics, small lights seen through glossy
-// bounces) the median lies below the mean and the output comes out dark. A cell's mean averages
-// coarseCell^2 pixels of the target, so its median is close to its mean: the term asks the filter
-// to spread a rare bright sample's energy over its neighbourhood rather than drop it.
-struct LossWeights {
-    double temporal = kTemporalWeight;
-    double absoluteTemporal = 0;
-    bool warpedTemporal = false;
-    double coarse = 0;
-    int coarseCell = 8;
-};
 
 // Frame t's motion [B, 2, H, W] (pixels into frame t-1) and history validity [B, 1, H, W].
 struct FrameMotion {

@@ -63,7 +63,7 @@ int main(int argc, char** argv) {
                 continue;
             }
             if (flag == "--warped-temporal") {
-                options.warpedTemporal = true;
+                options.loss.warpedTemporal = true;
                 continue;
             }
             if (flag == "--fresh") {
@@ -112,10 +112,10 @@ int main(int argc, char** argv) {
             else if (flag == "--lr") options.learningRate = real();
             else if (flag == "--lr-half-life") options.lrHalfLife = integer();
             else if (flag == "--clip") options.clipNorm = real();
-            else if (flag == "--temporal-weight") options.temporalWeight = real();
-            else if (flag == "--absolute-temporal-weight") options.absoluteTemporalWeight = real();
-            else if (flag == "--coarse-weight") options.coarseWeight = real();
-            else if (flag == "--coarse-cell") options.coarseCell = integer();
+            else if (flag == "--temporal-weight") options.loss.temporal = real();
+            else if (flag == "--absolute-temporal-weight") options.loss.absoluteTemporal = real();
+            else if (flag == "--coarse-weight") options.loss.coarse = real();
+            else if (flag == "--coarse-cell") options.loss.coarseCell = integer();
             else if (flag == "--val-every") options.valEvery = integer();
             else if (flag == "--checkpoint-every") options.checkpointEvery = integer();
             else if (flag == "--threads") options.threads = integer();

@@ -260,7 +260,7 @@ void checkOptions(const TrainOptions& o) {
     if (o.trainDir.empty() || o.outDir.empty()) throw Error("training needs a data folder and an output folder");
     if (o.steps < 1 || o.batch < 1 || o.crop < 8 || o.frames < 1 || o.minSpp < 1 || o.maxSpp < o.minSpp ||
         o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1 ||
-        !(o.temporalWeight >= 0) || !(o.absoluteTemporalWeight >= 0) || !(o.coarseWeight >= 0) || o.coarseCell < 1) {
+        !(o.loss.temporal >= 0) || !(o.loss.absoluteTemporal >= 0) || !(o.loss.coarse >= 0) || o.loss.coarseCell < 1) {
         throw Error("training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
                     "loss weights >= 0, coarse cell >= 1)");
     }
@@ -275,8 +275,7 @@ double learningRateAt(const TrainOptions& options, int step) {
 
 TrainSummary runTraining(const TrainOptions& options) {
     checkOptions(options);
-    const LossWeights lossWeights{options.temporalWeight, options.absoluteTemporalWeight, options.warpedTemporal,
-                                  options.coarseWeight, options.coarseCell};
+    const LossWeights& lossWeights = options.loss;
     torch::set_num_threads(options.threads);
     const torch::Device device(options.device);  // "cpu", "cuda", "cuda:1", ...
     const auto start = std::chrono::steady_clock::now();

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <string>
 
+#include "loss_weights.h"
 #include "model_config.h"
 
 namespace affinity::train {
@@ -27,11 +28,7 @@ struct TrainOptions {
     bool augment = true;        // dihedral transforms (motion transformed too) and colour permutations
     double learningRate = 1e-3;
     int lrHalfLife = 0;         // learning rate halves every lrHalfLife steps (0: constant)
-    double temporalWeight = 0.25;         // weight of SMAPE(dt O, dt O*), the paper's 0.25
-    double absoluteTemporalWeight = 0;    // weight of the absolute temporal term (train_loss.h); 0 in the paper
-    bool warpedTemporal = false;          // temporal terms on O_t - warped O_{t-1} (train_loss.h); off in the paper
-    double coarseWeight = 0;              // weight of SMAPE of cell means (train_loss.h); 0 in the paper
-    int coarseCell = 8;                   // cell side of the coarse term, pixels
+    LossWeights loss;           // the loss terms' weights (loss_weights.h); the defaults are the paper's
     double clipNorm = 1.0;      // gradient norm clipping (0: off)
     int valEvery = 50;          // validation and a loss.csv row every valEvery steps
     int checkpointEvery = 100;  // checkpoint every checkpointEvery steps (and at the end)

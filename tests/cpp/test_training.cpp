@@ -234,7 +234,7 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
     options.trainDir = "unused-train";
     options.outDir = "unused-out";
     for (double bad : {-0.5, double(NAN)}) {
-        options.temporalWeight = bad;
+        options.loss.temporal = bad;
         EXPECT_THROW(
             {
                 try {
@@ -245,15 +245,15 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
                 }
             },
             Error);
-        options.temporalWeight = 0.25;
-        options.absoluteTemporalWeight = bad;
+        options.loss.temporal = 0.25;
+        options.loss.absoluteTemporal = bad;
         EXPECT_THROW(train::runTraining(options), Error);
-        options.absoluteTemporalWeight = 0;
-        options.coarseWeight = bad;
+        options.loss.absoluteTemporal = 0;
+        options.loss.coarse = bad;
         EXPECT_THROW(train::runTraining(options), Error);
-        options.coarseWeight = 0;
+        options.loss.coarse = 0;
     }
-    options.coarseCell = 0;
+    options.loss.coarseCell = 0;
     EXPECT_THROW(train::runTraining(options), Error);
     EXPECT_FALSE(fs::exists("unused-out"));
 }
