@@ -1,5 +1,6 @@
 // How close the U-Net's hot loop gets to the machine: (a) the FP32 peak measured with an
-// FMA microbenchmark, (b) our 3x3 convolution at 1080p as GFLOP/s and fraction of that peak,
+// FMA microbenchmark (AVX2 and, where the CPU has it, AVX-512: the widest is the peak), (b)
+// our 3x3 convolution at 1080p (its AVX2 and AVX-512 kernels) as GFLOP/s and fraction of that peak,
 // (c) the same convolutions through oneDNN as a yardstick, (d) the embedding MLP at 1080p.
 // Run on a quiet machine with --benchmark_repetitions and compare numbers of the same run.
 #include <benchmark/benchmark.h>
@@ -19,6 +20,7 @@
 
 #include "affinity/features.h"
 #include "embedding.h"
+#include "fma_chains.h"
 #include "simd8.h"
 #include "unet_layers.h"
 
@@ -54,32 +56,47 @@ struct Peak {
 
 // ---- (a) FP32 peak ----------------------------------------------------------------------
 
-constexpr int kChains = 12;  // independent FMA chains: more than latency (4-5) x pipes (2)
-constexpr double kFlopPerStep = kChains * Float8::kLanes * 2.0;
-
-// acc = acc * a + b converges (|a| < 1), so the values stay normal however long it runs.
-__attribute__((noinline)) float fmaChains(long long steps) {
-    Float8 acc[kChains];
-    for (int k = 0; k < kChains; ++k) acc[k] = Float8::broadcast(0.01f * float(k));
+// The AVX2 chains: in this translation unit, built like the library (x86-64-v3).
+__attribute__((noinline)) float fmaChainsAvx2Impl(long long steps) {
+    Float8 acc[kFmaChains];
+    for (int k = 0; k < kFmaChains; ++k) acc[k] = Float8::broadcast(0.01f * float(k));
     const Float8 a = Float8::broadcast(0.999f), b = Float8::broadcast(1e-3f);
     for (long long i = 0; i < steps; ++i)
-        for (int k = 0; k < kChains; ++k) acc[k] = fma(acc[k], a, b);
+        for (int k = 0; k < kFmaChains; ++k) acc[k] = fma(acc[k], a, b);
     Float8 sum = acc[0];
-    for (int k = 1; k < kChains; ++k) sum = sum + acc[k];
+    for (int k = 1; k < kFmaChains; ++k) sum = sum + acc[k];
     float lanes[Float8::kLanes];
     sum.storeu(lanes);
     return lanes[0] + lanes[7];
 }
 
-// One parallel run of `steps` per thread on `threads` threads.
-Peak runFmaChains(int threads, long long steps) {
+// Lanes of the FMA loop used for the peak: 16 where the CPU has AVX-512 (on Zen 5 that doubles
+// the peak; on Zen 4 it changes nothing), else 8.
+int peakLanes() {
+#if AFFINITY_BENCH_AVX512
+    if (cpuHasAvx512()) return 16;
+#endif
+    return 8;
+}
+
+float fmaChains(int lanes, long long steps) {
+#if AFFINITY_BENCH_AVX512
+    if (lanes == 16) return fmaChainsAvx512(steps);
+#endif
+    return fmaChainsAvx2Impl(steps);
+}
+
+// One parallel run of `steps` per thread on `threads` threads with `lanes`-wide vectors.
+double flopPerStep(int lanes) { return kFmaChains * lanes * 2.0; }
+
+Peak runFmaChains(int threads, int lanes, long long steps) {
     float sink = 0.0f;
     const Stopwatch watch;
 #pragma omp parallel num_threads(threads) reduction(+ : sink)
-    sink += fmaChains(steps);
+    sink += fmaChains(lanes, steps);
     const double wall = watch.wall(), cpu = watch.cpu();
     benchmark::DoNotOptimize(sink);
-    const double flop = threads * double(steps) * kFlopPerStep;
+    const double flop = threads * double(steps) * flopPerStep(lanes);
     return {flop / wall, flop / cpu};
 }
 
@@ -96,21 +113,23 @@ void updatePeak(int threads, const Peak& measured) {
 
 const Peak& peakFor(int threads) {
     if (bestPeak()[threads].wall == 0.0)
-        for (int i = 0; i < 5; ++i) updatePeak(threads, runFmaChains(threads, 1 << 22));
+        for (int i = 0; i < 5; ++i) updatePeak(threads, runFmaChains(threads, peakLanes(), 1 << 22));
     return bestPeak()[threads];
 }
 
-void fmaPeak(benchmark::State& state) {
+// The peak of `lanes`-wide FMAs; the widest the CPU has is the peak every fraction refers to.
+void fmaPeak(benchmark::State& state, int lanes) {
     const int threads = int(state.range(0));
     constexpr long long kSteps = 1 << 23;
     Peak best;
     for (auto _ : state) {
-        const Peak run = runFmaChains(threads, kSteps);
+        const Peak run = runFmaChains(threads, lanes, kSteps);
         best.wall = std::max(best.wall, run.wall);
         best.perCpu = std::max(best.perCpu, run.perCpu);
     }
-    updatePeak(threads, best);
-    state.counters["FLOPS"] = benchmark::Counter(threads * double(kSteps) * kFlopPerStep * double(state.iterations()),
+    if (lanes == peakLanes()) updatePeak(threads, best);
+    state.counters["FLOPS"] = benchmark::Counter(threads * double(kSteps) * flopPerStep(lanes) *
+                                                     double(state.iterations()),
                                                  benchmark::Counter::kIsRate);
     state.counters["best_FLOPS"] = best.wall;
     state.counters["FLOP_per_cpu_s"] = best.perCpu;
@@ -174,11 +193,11 @@ void reportConv(benchmark::State& state, const Stopwatch& watch, int in, int out
 
 // ---- (b) our convolution ----------------------------------------------------------------
 
-void ourConv(benchmark::State& state) {
+void ourConv(benchmark::State& state, ConvIsa isa) {
     const int in = int(state.range(0)), out = int(state.range(1)), threads = int(state.range(2));
     const ConvCase& c = convCase(in, out);
     peakFor(threads);
-    const Conv2d conv(c.weight.data(), c.bias.data(), out, in, 3);
+    const Conv2d conv(c.weight.data(), c.bias.data(), out, in, 3, isa);
     const ThreadScope scope(threads);
     FeatureMap output;
     conv.apply(c.input, Activation::LeakyRelu, output);  // allocate outside the timing
@@ -319,9 +338,12 @@ void registerAll() {
     std::vector<int> threadCounts{1};
     if (all > 1) threadCounts.push_back(all);
 
-    auto* peak = benchmark::RegisterBenchmark("FmaPeak", fmaPeak);
-    for (int t : threadCounts) peak->Arg(t);
-    peak->ArgNames({"threads"})->UseRealTime()->Unit(benchmark::kMillisecond);
+    for (const int lanes : {8, 16}) {
+        if (lanes > peakLanes()) continue;
+        auto* peak = benchmark::RegisterBenchmark(lanes == 8 ? "FmaPeak/avx2" : "FmaPeak/avx512", fmaPeak, lanes);
+        for (int t : threadCounts) peak->Arg(t);
+        peak->ArgNames({"threads"})->UseRealTime()->Unit(benchmark::kMillisecond);
+    }
 
     const std::vector<std::pair<int, int>> shapes{{32, 32}, {16, 16}, {24, 32}, {64, 64}};
     auto addShapes = [&](benchmark::internal::Benchmark* b) {
@@ -329,7 +351,8 @@ void registerAll() {
         if (all > 1) b->Args({32, 32, 1});  // per-core efficiency
         b->ArgNames({"in", "out", "threads"})->UseRealTime()->Unit(benchmark::kMillisecond);
     };
-    addShapes(benchmark::RegisterBenchmark("Conv3x3/ours", ourConv));
+    addShapes(benchmark::RegisterBenchmark("Conv3x3/ours_avx2", ourConv, ConvIsa::Avx2));
+    if (cpuHasAvx512()) addShapes(benchmark::RegisterBenchmark("Conv3x3/ours_avx512", ourConv, ConvIsa::Avx512));
 #if AFFINITY_BENCH_ONEDNN
     addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_nhwc", oneDnnConv, false));
     addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_blocked", oneDnnConv, true));

@@ -1,10 +1,11 @@
 #pragma once
 // The register-blocked convolution kernel behind Conv2d (3x3 and 1x1) and the embedding's
 // dense layers (a dense layer is a 1x1 convolution over a row of samples). NHWC in and out,
-// vectorised over output channels, no threading: callers split the output into rows and
-// column ranges. Every output value is accumulated in the same fixed order (bias, then taps
-// row-major, then input channels in concatenation order) whatever the split, so results do
-// not depend on how work is divided among threads.
+// vectorised over output channels with AVX2 or, where the CPU has it, AVX-512; no threading:
+// callers split the output into rows and column ranges. Every output value is accumulated in
+// the same fixed order (bias, then taps row-major, then input channels in concatenation order)
+// whatever the split and the vector width, so results depend neither on how work is divided
+// among threads nor on the instruction set.
 #include <cstddef>
 #include <vector>
 
@@ -13,6 +14,14 @@
 namespace affinity {
 
 enum class Activation { None, LeakyRelu };  // leaky ReLU slope 0.01
+
+// The kernel's vector width: 8 lanes (AVX2 + FMA, the build's baseline) or 16 (AVX-512).
+enum class ConvIsa { Avx2, Avx512 };
+// Whether this build has the AVX-512 path and this CPU (and OS) can run it.
+bool cpuHasAvx512();
+// Avx512 where cpuHasAvx512(), unless the environment variable AFFINITY_CONV_ISA=avx2 asks
+// for the AVX2 path (benchmarks compare the two); read once.
+ConvIsa defaultConvIsa();
 
 // One input of a convolution: an NHWC image of the output's height and width, or, when
 // `upsampled`, of half of it (rounded up) read as its nearest-neighbour 2x upsampling: output
@@ -29,14 +38,19 @@ class PackedConv {
 public:
     PackedConv() = default;
     // torchWeights: [outChannels][inChannels][size][size]; bias: [outChannels] or null (zero).
-    PackedConv(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size);
+    // Throws affinity::Error for Avx512 where !cpuHasAvx512().
+    PackedConv(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
+               ConvIsa isa = defaultConvIsa());
 
     int outChannels() const { return out_; }
     int inChannels() const { return in_; }
     int size() const { return size_; }
+    ConvIsa isa() const { return isa_; }
 
-    // Output channels are split into blocks of one or two 8-lane vectors; block b holds
-    // weights [tap][inChannel][lanes] (lanes = 8 * vectors, zero past outChannels).
+    // Lanes per vector: 8 (AVX2) or 16 (AVX-512).
+    int vectorLanes() const { return isa_ == ConvIsa::Avx512 ? 16 : 8; }
+    // Output channels are split into blocks of one or two vectors; block b holds weights
+    // [tap][inChannel][vectors * vectorLanes()] (zero past outChannels).
     struct Block {
         int firstChannel;
         int vectors;
@@ -48,6 +62,7 @@ public:
 
 private:
     int out_ = 0, in_ = 0, size_ = 0;
+    ConvIsa isa_ = ConvIsa::Avx2;
     std::vector<Block> blocks_;
     AlignedVector<float> weights_;
     AlignedVector<float> bias_;

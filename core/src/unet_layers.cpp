@@ -19,8 +19,9 @@ std::string shapeText(const FeatureMap& map) {
 
 }  // namespace
 
-Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size)
-    : packed_(torchWeights, bias, outChannels, inChannels, size) {}
+Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
+               ConvIsa isa)
+    : packed_(torchWeights, bias, outChannels, inChannels, size, isa) {}
 
 void Conv2d::apply(const FeatureMap& input, Activation activation, FeatureMap& output) const {
     if (input.channels() != inChannels())

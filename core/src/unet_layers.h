@@ -16,8 +16,10 @@ inline constexpr int kConvTileWidth = 128;
 class Conv2d {
 public:
     // torchWeights: [outChannels][inChannels][size][size] (torch layout); size is 1 or 3.
-    // bias: [outChannels]. Throws affinity::Error on an unsupported shape.
-    Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size);
+    // bias: [outChannels]. Throws affinity::Error on an unsupported shape. `isa` picks the
+    // kernel's vector width (the results are bitwise the same).
+    Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
+           ConvIsa isa = defaultConvIsa());
 
     int inChannels() const { return packed_.inChannels(); }
     int outChannels() const { return packed_.outChannels(); }

@@ -7,6 +7,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdlib>
 #include <cstring>
 #include <random>
 #include <string>
@@ -211,6 +212,47 @@ TEST(Conv2d, UpsampledInputEqualsExplicitUpsampling) {
                     conv.apply(upsampled, skip, Activation::LeakyRelu, explicitly);
                     ASSERT_TRUE(bitwiseEqual(fused, explicitly));
                 }
+}
+
+TEST(Conv2d, InstructionSetsAgreeBitwise) {
+    // The reference tests above run the default (widest) kernel; this holds the AVX2 kernel to
+    // the AVX-512 one bit for bit: both accumulate each output in the same order. Channel
+    // counts straddle the 8- and 16-lane blocks (24 = 16 + 8 idle lanes, 33 = 32 + 1).
+    if (!cpuHasAvx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the AVX2 kernel runs here";
+    std::mt19937 rng(21);
+    for (const Size size : {Size{7, 13}, Size{33, 17}, Size{3, 40}})
+        for (const int out : {1, 5, 8, 9, 16, 17, 24, 25, 32, 33, 48, 64})
+            for (const int kernel : {1, 3}) {
+                SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " out " +
+                             std::to_string(out) + " size " + std::to_string(kernel));
+                const FeatureMap coarse = randomMap((size.height + 1) / 2, (size.width + 1) / 2, 12, rng);
+                const FeatureMap skip = randomMap(size.height, size.width, 19, rng);
+                const ConvWeights one = randomConv(out, 19, kernel, rng);
+                const ConvWeights two = randomConv(out, 31, kernel, rng);
+                FeatureMap narrow, wide;
+                Conv2d(one.weight.data(), one.bias.data(), out, 19, kernel, ConvIsa::Avx2)
+                    .apply(skip, Activation::LeakyRelu, narrow);
+                Conv2d(one.weight.data(), one.bias.data(), out, 19, kernel, ConvIsa::Avx512)
+                    .apply(skip, Activation::LeakyRelu, wide);
+                ASSERT_TRUE(bitwiseEqual(narrow, wide));
+                Conv2d(two.weight.data(), two.bias.data(), out, 31, kernel, ConvIsa::Avx2)
+                    .applyUpsampled(coarse, skip, Activation::None, narrow);
+                Conv2d(two.weight.data(), two.bias.data(), out, 31, kernel, ConvIsa::Avx512)
+                    .applyUpsampled(coarse, skip, Activation::None, wide);
+                ASSERT_TRUE(bitwiseEqual(narrow, wide));
+            }
+}
+
+TEST(Conv2d, DefaultInstructionSetIsTheWidestAvailable) {
+    const float weight = 1.0f;
+    const Conv2d conv(&weight, nullptr, 1, 1, 1);
+    // AFFINITY_CONV_ISA=avx2 is the one way to ask for less (benchmarks compare the two).
+    const char* forced = std::getenv("AFFINITY_CONV_ISA");
+    const bool avx2Asked = forced && std::string(forced) == "avx2";
+    EXPECT_EQ(defaultConvIsa(), cpuHasAvx512() && !avx2Asked ? ConvIsa::Avx512 : ConvIsa::Avx2);
+    if (!cpuHasAvx512()) {
+        EXPECT_THROW(Conv2d(&weight, nullptr, 1, 1, 1, ConvIsa::Avx512), Error);
+    }
 }
 
 TEST(Conv2d, RowsEqualTheWholeImage) {

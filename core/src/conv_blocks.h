@@ -1,0 +1,174 @@
+#pragma once
+// The register-blocked inner loops of the convolution kernel (conv_kernel.h), written once
+// over the vector type: Float8 (AVX2, conv_kernel.cpp) and Float16 (AVX-512,
+// conv_kernel_avx512.cpp) instantiate them. Vectorised over output channels, so every output
+// value is accumulated in the same order (bias, taps row-major, input channels in
+// concatenation order) whatever the vector width: the two paths agree bitwise.
+#include <cstddef>
+
+#include "conv_kernel.h"
+
+namespace affinity {
+
+// Everything a register block needs besides its position; one per (row, channel block).
+struct ConvBlockArgs {
+    const ConvSource* sources;
+    int sourceCount;
+    int width;
+    int y;
+    int radius, size;
+    int kyBegin, kyEnd, kxBegin, kxEnd;  // tap offsets that stay inside the image
+    std::size_t tapStride;               // floats of weights per tap
+    const float* weights;
+    const float* bias;
+    int outStride;   // output channels
+    int tailLanes;   // valid lanes of the block's last vector
+    bool leaky;
+};
+
+#if AFFINITY_HAVE_AVX512_KERNEL
+// Columns [x0, x1) of one block of `vectors` (1 or 2) 16-lane vectors of output channels
+// (conv_kernel_avx512.cpp; call only where cpuHasAvx512()).
+void convolveRangeAvx512(const ConvBlockArgs& a, int vectors, int x0, int x1, float* outRow);
+#endif
+
+// Internal linkage: each instruction set's translation unit keeps its own copies (an AVX-512
+// copy must never be the one the linker keeps for the AVX2 path).
+namespace {
+
+// Output pixels per register block for N vectors of output channels: M x N accumulators,
+// N weight vectors and one broadcast input must fit in the register file (16 ymm for AVX2,
+// 32 zmm for AVX-512).
+template <class V, int N>
+constexpr int kBlockPixels = V::kLanes == 16 ? 12 : (N == 2 ? 6 : 8);
+
+// acc[m] += sum over j < count of pixel[m][j] * w[j] for M pixels: the innermost loop,
+// M x N FMAs per j, each operand in a register or one load away (base + index addressing).
+template <class V, int M, int N>
+inline void accumulate(V (&acc)[M][N], const float* const (&pixel)[M], int count, const float* w) {
+    constexpr int L = V::kLanes;
+#pragma GCC unroll 2
+    for (int j = 0; j < count; ++j) {
+        V wv[N];
+#pragma GCC unroll 16
+        for (int n = 0; n < N; ++n) wv[n] = V::load(w + std::size_t(j) * (N * L) + n * L);
+#pragma GCC unroll 16
+        for (int m = 0; m < M; ++m) {
+            const V xv = V::broadcast(pixel[m] + j);
+#pragma GCC unroll 16
+            for (int n = 0; n < N; ++n) acc[m][n] = fma(xv, wv[n], acc[m][n]);
+        }
+    }
+}
+
+// The same for M pixels `stride` floats apart starting at `in`.
+template <class V, int M, int N>
+inline void accumulate(V (&acc)[M][N], const float* in, std::size_t stride, int count, const float* w) {
+    const float* pixel[M];
+#pragma GCC unroll 16
+    for (int m = 0; m < M; ++m) pixel[m] = in + std::size_t(m) * stride;
+    accumulate<V, M, N>(acc, pixel, count, w);
+}
+
+// M consecutive output pixels starting at column x, all of whose taps in [kxBegin, kxEnd]
+// exist; out points at the first pixel's first channel of this block.
+template <class V, int M, int N>
+void convBlock(const ConvBlockArgs& a, int x, float* out) {
+    constexpr int L = V::kLanes;
+    V acc[M][N];
+#pragma GCC unroll 16
+    for (int n = 0; n < N; ++n) {
+        const V b = V::load(a.bias + n * L);
+#pragma GCC unroll 16
+        for (int m = 0; m < M; ++m) acc[m][n] = b;
+    }
+    const int r = a.radius;
+    if (a.sourceCount == 1 && !a.sources[0].upsampled && a.kxBegin == -r && a.kxEnd == r) {
+        // One source and a full row of taps: for a given ky the (kx, channel) pairs are
+        // contiguous in both the input row and the packed weights, so the taps of a row run
+        // as one loop. Same accumulation order as tap by tap.
+        const int channels = a.sources[0].channels;
+        for (int ky = a.kyBegin; ky <= a.kyEnd; ++ky) {
+            const float* w = a.weights + std::size_t((ky + r) * a.size) * a.tapStride;
+            const float* in = a.sources[0].data + (std::size_t(a.y + ky) * a.width + std::size_t(x - r)) * channels;
+            accumulate<V, M, N>(acc, in, std::size_t(channels), a.size * channels, w);
+        }
+    } else {
+        for (int ky = a.kyBegin; ky <= a.kyEnd; ++ky) {
+            for (int kx = a.kxBegin; kx <= a.kxEnd; ++kx) {
+                const float* w = a.weights + std::size_t((ky + r) * a.size + kx + r) * a.tapStride;
+                for (int s = 0; s < a.sourceCount; ++s) {
+                    const ConvSource& source = a.sources[s];
+                    const int channels = source.channels;
+                    if (source.upsampled) {
+                        const std::size_t sourceWidth = std::size_t(a.width + 1) / 2;
+                        const float* row = source.data + std::size_t((a.y + ky) / 2) * sourceWidth * channels;
+                        const float* pixel[M];
+#pragma GCC unroll 16
+                        for (int m = 0; m < M; ++m) pixel[m] = row + std::size_t((x + m + kx) / 2) * channels;
+                        accumulate<V, M, N>(acc, pixel, channels, w);
+                    } else {
+                        const float* in =
+                            source.data + (std::size_t(a.y + ky) * a.width + std::size_t(x + kx)) * channels;
+                        accumulate<V, M, N>(acc, in, std::size_t(channels), channels, w);
+                    }
+                    w += std::size_t(channels) * (N * L);
+                }
+            }
+        }
+    }
+    const V slope = V::broadcast(0.01f);  // leaky ReLU
+#pragma GCC unroll 16
+    for (int m = 0; m < M; ++m) {
+        float* o = out + std::size_t(m) * a.outStride;
+#pragma GCC unroll 16
+        for (int n = 0; n < N; ++n) {
+            V v = acc[m][n];
+            if (a.leaky) v = max(v, v * slope);
+            if (n == N - 1 && a.tailLanes < L)
+                v.storePartial(o + n * L, a.tailLanes);
+            else
+                v.storeu(o + n * L);
+        }
+    }
+}
+
+// A block of `count` (< M) pixels: the end of an interior run.
+template <class V, int N, int M>
+void convTail(const ConvBlockArgs& a, int x, int count, float* out) {
+    if constexpr (M > 0) {
+        if (count == M)
+            convBlock<V, M, N>(a, x, out);
+        else
+            convTail<V, N, M - 1>(a, x, count, out);
+    }
+}
+
+// Columns [x0, x1) of one channel block. Pixels within `radius` of the left or right border
+// go one at a time with their missing taps skipped (a zero-padded tap adds 0 * w, which
+// changes no sum for finite weights); the rest in blocks of M.
+template <class V, int N>
+void convolveRange(ConvBlockArgs a, int x0, int x1, float* outRow) {
+    constexpr int M = kBlockPixels<V, N>;
+    const int r = a.radius;
+    int x = x0;
+    while (x < x1) {
+        if (x < r || x >= a.width - r) {
+            ConvBlockArgs edge = a;
+            edge.kxBegin = -x > -r ? -x : -r;
+            edge.kxEnd = a.width - 1 - x < r ? a.width - 1 - x : r;
+            convBlock<V, 1, N>(edge, x, outRow + std::size_t(x) * a.outStride);
+            ++x;
+            continue;
+        }
+        const int end = x1 < a.width - r ? x1 : a.width - r;
+        a.kxBegin = -r;
+        a.kxEnd = r;
+        for (; x + M <= end; x += M) convBlock<V, M, N>(a, x, outRow + std::size_t(x) * a.outStride);
+        if (x < end) convTail<V, N, M - 1>(a, x, end - x, outRow + std::size_t(x) * a.outStride);
+        x = end;
+    }
+}
+
+}  // namespace
+}  // namespace affinity

@@ -1,0 +1,34 @@
+#pragma once
+// Sixteen float lanes (AVX-512F): the wide vector type of the convolution kernel's AVX-512
+// path, the same interface as Float8. Only translation units compiled for x86-64-v4 include
+// it (conv_kernel_avx512.cpp, the benchmark's peak measurement); the rest of the project is
+// built for x86-64-v3 and reaches this code through a run-time CPU check.
+#if !defined(__AVX512F__)
+#error "simd16.h needs AVX-512F (compile with -march=x86-64-v4)"
+#endif
+#include <immintrin.h>
+
+namespace affinity {
+// Internal linkage: an AVX-512 copy of these inline functions must never be the one the linker
+// keeps for an AVX2 translation unit.
+namespace {
+
+struct Float16 {
+    static constexpr int kLanes = 16;
+    __m512 v;
+
+    static Float16 broadcast(const float* p) { return {_mm512_set1_ps(*p)}; }
+    static Float16 broadcast(float x) { return {_mm512_set1_ps(x)}; }
+    static Float16 load(const float* p) { return {_mm512_load_ps(p)}; }  // 64-byte aligned
+    void storeu(float* p) const { _mm512_storeu_ps(p, v); }
+    // Stores lanes [0, count), count in 1..16; memory past them is not touched.
+    void storePartial(float* p, int count) const {
+        _mm512_mask_storeu_ps(p, __mmask16((1u << count) - 1u), v);
+    }
+    friend Float16 fma(Float16 a, Float16 b, Float16 c) { return {_mm512_fmadd_ps(a.v, b.v, c.v)}; }
+    friend Float16 operator*(Float16 a, Float16 b) { return {_mm512_mul_ps(a.v, b.v)}; }
+    friend Float16 max(Float16 a, Float16 b) { return {_mm512_max_ps(a.v, b.v)}; }
+};
+
+}  // namespace
+}  // namespace affinity
