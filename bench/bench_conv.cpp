@@ -209,6 +209,28 @@ void ourConv(benchmark::State& state, ConvIsa isa) {
     reportConv(state, watch, in, out, threads);
 }
 
+// The decoder's form: concat(upsampled coarse level, skip) without materialising either,
+// `in` channels split as coarse = in - in / 2 (read at half resolution) and skip = in / 2.
+void ourUpsampledConv(benchmark::State& state) {
+    const int in = int(state.range(0)), out = int(state.range(1)), threads = int(state.range(2));
+    const int skipChannels = in / 2, coarseChannels = in - skipChannels;
+    const ConvCase& c = convCase(in, out);
+    peakFor(threads);
+    FeatureMap coarse((kHeight + 1) / 2, (kWidth + 1) / 2, coarseChannels), skip(kHeight, kWidth, skipChannels);
+    for (FeatureMap* map : {&coarse, &skip})
+        std::copy(c.input.data(), c.input.data() + map->size(), map->data());
+    const Conv2d conv(c.weight.data(), c.bias.data(), out, in, 3);
+    const ThreadScope scope(threads);
+    FeatureMap output;
+    conv.applyUpsampled(coarse, skip, Activation::LeakyRelu, output);
+    const Stopwatch watch;
+    for (auto _ : state) {
+        conv.applyUpsampled(coarse, skip, Activation::LeakyRelu, output);
+        benchmark::ClobberMemory();
+    }
+    reportConv(state, watch, in, out, threads);
+}
+
 // ---- (c) oneDNN -------------------------------------------------------------------------
 
 #if AFFINITY_BENCH_ONEDNN
@@ -345,7 +367,7 @@ void registerAll() {
         peak->ArgNames({"threads"})->UseRealTime()->Unit(benchmark::kMillisecond);
     }
 
-    const std::vector<std::pair<int, int>> shapes{{32, 32}, {16, 16}, {24, 32}, {64, 64}};
+    const std::vector<std::pair<int, int>> shapes{{32, 32}, {16, 16}, {24, 32}, {64, 64}, {40, 16}, {56, 24}};
     auto addShapes = [&](benchmark::internal::Benchmark* b) {
         for (const auto& [in, out] : shapes) b->Args({in, out, all});
         if (all > 1) b->Args({32, 32, 1});  // per-core efficiency
@@ -353,6 +375,10 @@ void registerAll() {
     };
     addShapes(benchmark::RegisterBenchmark("Conv3x3/ours_avx2", ourConv, ConvIsa::Avx2));
     if (cpuHasAvx512()) addShapes(benchmark::RegisterBenchmark("Conv3x3/ours_avx512", ourConv, ConvIsa::Avx512));
+    auto* upsampled = benchmark::RegisterBenchmark("Conv3x3Upsampled/ours", ourUpsampledConv);
+    for (const auto& [in, out] : std::vector<std::pair<int, int>>{{40, 16}, {56, 24}, {32, 32}})
+        upsampled->Args({in, out, all});
+    upsampled->ArgNames({"in", "out", "threads"})->UseRealTime()->Unit(benchmark::kMillisecond);
 #if AFFINITY_BENCH_ONEDNN
     addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_nhwc", oneDnnConv, false));
     addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_blocked", oneDnnConv, true));

@@ -195,18 +195,17 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
     const float inverseSpp = 1.0f / float(spp);
     return forEachChunk(samples, pixels, spp, depthScale, sampleSums, true,
                         [&](long long p0, int count, const float* hidden, float* mean) {
-                            // Mean over each pixel's samples, in sample order.
+                            // Mean over each pixel's samples, added in sample order (one loop
+                            // over channels: a memcpy per pixel was a library call per pixel).
                             for (int p = 0; p < count; ++p) {
                                 float* m = mean + std::size_t(p) * channels;
                                 const float* h = hidden + std::size_t(p) * spp * channels;
-                                std::memcpy(m, h, std::size_t(channels) * sizeof(float));
-                                for (int s = 1; s < spp; ++s) {
-                                    const float* hs = h + std::size_t(s) * channels;
 #pragma omp simd
-                                    for (int c = 0; c < channels; ++c) m[c] += hs[c];
+                                for (int c = 0; c < channels; ++c) {
+                                    float sum = h[c];
+                                    for (int s = 1; s < spp; ++s) sum += h[std::size_t(s) * channels + c];
+                                    m[c] = sum * inverseSpp;
                                 }
-#pragma omp simd
-                                for (int c = 0; c < channels; ++c) m[c] *= inverseSpp;
                             }
                             const ConvSource meanSource{mean, channels};
                             convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count,
@@ -237,15 +236,11 @@ long long Embedding::accumulate(const float* samples, int height, int width, int
                             for (int p = 0; p < count; ++p) {
                                 float* m = hiddenSum.data() + (std::size_t(p0) + std::size_t(p)) * channels;
                                 const float* h = hidden + std::size_t(p) * spp * channels;
-                                int s = 0;
-                                if (first) {
-                                    std::memcpy(m, h, std::size_t(channels) * sizeof(float));
-                                    s = 1;
-                                }
-                                for (; s < spp; ++s) {
-                                    const float* hs = h + std::size_t(s) * channels;
 #pragma omp simd
-                                    for (int c = 0; c < channels; ++c) m[c] += hs[c];
+                                for (int c = 0; c < channels; ++c) {
+                                    float sum = first ? h[c] : m[c] + h[c];
+                                    for (int s = 1; s < spp; ++s) sum += h[std::size_t(s) * channels + c];
+                                    m[c] = sum;
                                 }
                             }
                         });
