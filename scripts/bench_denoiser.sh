@@ -17,10 +17,15 @@ json_out=${BENCH_JSON:-}
 # Idle OpenMP workers sleep instead of spinning, so that back-to-back runs do not slow each other.
 export OMP_WAIT_POLICY=passive
 
-# "<label>=<model file>[=stream]": stream feeds the frame one sample at a time
-# (Denoiser::addSamples, as the Blender extension does), so one sample's features are held.
+# "<label>=<model file>[=stream|avx2]": stream feeds the frame one sample at a time
+# (Denoiser::addSamples, as the Blender extension does), so one sample's features are held;
+# avx2 runs the convolutions' AVX2 kernel where the CPU would pick AVX-512 (the same numbers
+# bit for bit: the rows show what the wider kernel buys on this machine, in the same run).
 models=("tiny=$root/core/models/tiny.affw" "small=" "tiny streamed=$root/core/models/tiny.affw=stream"
         "small streamed==stream")
+if grep -q avx512f /proc/cpuinfo 2>/dev/null; then
+  models+=("tiny, AVX2 kernel=$root/core/models/tiny.affw=avx2" "small, AVX2 kernel==avx2")
+fi
 if [ -x "$build/training/affinity_model_tool" ]; then
   "$build/training/affinity_model_tool" init --preset paper --seed 1 --out "$work/paper.affw" >/dev/null
   models+=("paper=$work/paper.affw")
@@ -30,7 +35,9 @@ for entry in "${models[@]}"; do
   args=(--size "$size" --spp "$spp" --frames 4)
   [ -n "$file" ] && args+=(--model "$file")
   [ "$mode" = stream ] && args+=(--stream 1)
-  echo "{\"label\": \"$label\", \"result\": $("$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"
+  isa=${AFFINITY_CONV_ISA:-}
+  [ "$mode" = avx2 ] && isa=avx2
+  echo "{\"label\": \"$label\", \"result\": $(AFFINITY_CONV_ISA=$isa "$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"
 done
 [ -n "$json_out" ] && cp "$work/results.jsonl" "$json_out"
 PYTHONPATH=$build/python "$root/.venv/bin/python" - "$size" "$spp" "$work/results.jsonl" <<'PY'
@@ -60,7 +67,14 @@ stages = list(rows[0]["result"]["stage_ms"])
 print(f"Denoiser speed at {size}, {spp} spp, 2 threads; OpenImageDenoise (pyoidn, colour + albedo + normal, "
       f"quality high) measured in the same run. Peak memory (MiB) includes the input: the "
       f"{rows[0]['result']['input_frame_mb']:.0f} MiB frame of per-sample features, or one sample's "
-      "features for the streamed rows.\n")
+      "features for the streamed rows.")
+cpu = {}
+for line in open("/proc/cpuinfo"):
+    key, _, value = line.partition(":")
+    cpu.setdefault(key.strip(), value.strip())
+kernel = "AVX-512 (AVX2 in the rows that say so)" if "avx512f" in cpu.get("flags", "").split() else "AVX2"
+print(f"CPU: {cpu.get('model name', '?')}, family {cpu.get('cpu family', '?')}, model {cpu.get('model', '?')}; "
+      f"convolution kernel: {kernel}.\n")
 print("| model | parameters | kFLOP/px | ms/frame | OIDN ms / ours | peak memory MiB | " + " | ".join(stages) + " |")
 print("|---|---|---|---|---|---|" + "---|" * len(stages))
 for row in rows:

@@ -16,14 +16,16 @@ struct ConvBlockArgs {
     int sourceCount;
     int width;
     int y;
-    int radius, size;
+    int size;
+    int originY, originX;                // offset of the first tap: -size / 2, or 2x2 phases' -1 or 0
     int kyBegin, kyEnd, kxBegin, kxEnd;  // tap offsets that stay inside the image
     std::size_t tapStride;               // floats of weights per tap
     const float* weights;
     const float* bias;
-    int outStride;   // output channels
-    int tailLanes;   // valid lanes of the block's last vector
+    int outStride;     // floats from one output pixel to the next
+    int tailLanes;     // valid lanes of the block's last vector
     bool leaky;
+    bool addToOutput;  // start from the output's values instead of the bias
 };
 
 #if AFFINITY_HAVE_AVX512_KERNEL
@@ -76,27 +78,37 @@ template <class V, int M, int N>
 void convBlock(const ConvBlockArgs& a, int x, float* out) {
     constexpr int L = V::kLanes;
     V acc[M][N];
+    if (a.addToOutput) {
 #pragma GCC unroll 16
-    for (int n = 0; n < N; ++n) {
-        const V b = V::load(a.bias + n * L);
+        for (int m = 0; m < M; ++m)
 #pragma GCC unroll 16
-        for (int m = 0; m < M; ++m) acc[m][n] = b;
+            for (int n = 0; n < N; ++n)
+                acc[m][n] = V::loadPartial(out + std::size_t(m) * a.outStride + n * L, n == N - 1 ? a.tailLanes : L);
+    } else {
+#pragma GCC unroll 16
+        for (int n = 0; n < N; ++n) {
+            const V b = V::load(a.bias + n * L);
+#pragma GCC unroll 16
+            for (int m = 0; m < M; ++m) acc[m][n] = b;
+        }
     }
-    const int r = a.radius;
-    if (a.sourceCount == 1 && !a.sources[0].upsampled && a.kxBegin == -r && a.kxEnd == r) {
+    const int lastTap = a.originX + a.size - 1;
+    if (a.sourceCount == 1 && !a.sources[0].upsampled && a.kxBegin == a.originX && a.kxEnd == lastTap) {
         // One source and a full row of taps: for a given ky the (kx, channel) pairs are
         // contiguous in both the input row and the packed weights, so the taps of a row run
         // as one loop. Same accumulation order as tap by tap.
         const int channels = a.sources[0].channels;
         for (int ky = a.kyBegin; ky <= a.kyEnd; ++ky) {
-            const float* w = a.weights + std::size_t((ky + r) * a.size) * a.tapStride;
-            const float* in = a.sources[0].data + (std::size_t(a.y + ky) * a.width + std::size_t(x - r)) * channels;
+            const float* w = a.weights + std::size_t((ky - a.originY) * a.size) * a.tapStride;
+            const float* in =
+                a.sources[0].data + (std::size_t(a.y + ky) * a.width + std::size_t(x + a.originX)) * channels;
             accumulate<V, M, N>(acc, in, std::size_t(channels), a.size * channels, w);
         }
     } else {
         for (int ky = a.kyBegin; ky <= a.kyEnd; ++ky) {
             for (int kx = a.kxBegin; kx <= a.kxEnd; ++kx) {
-                const float* w = a.weights + std::size_t((ky + r) * a.size + kx + r) * a.tapStride;
+                const float* w =
+                    a.weights + std::size_t((ky - a.originY) * a.size + kx - a.originX) * a.tapStride;
                 for (int s = 0; s < a.sourceCount; ++s) {
                     const ConvSource& source = a.sources[s];
                     const int channels = source.channels;
@@ -144,26 +156,27 @@ void convTail(const ConvBlockArgs& a, int x, int count, float* out) {
     }
 }
 
-// Columns [x0, x1) of one channel block. Pixels within `radius` of the left or right border
-// go one at a time with their missing taps skipped (a zero-padded tap adds 0 * w, which
-// changes no sum for finite weights); the rest in blocks of M.
+// Columns [x0, x1) of one channel block. Pixels whose taps reach past the left or right
+// border go one at a time with their missing taps skipped (a zero-padded tap adds 0 * w,
+// which changes no sum for finite weights); the rest in blocks of M.
 template <class V, int N>
 void convolveRange(ConvBlockArgs a, int x0, int x1, float* outRow) {
     constexpr int M = kBlockPixels<V, N>;
-    const int r = a.radius;
+    const int first = a.originX, last = a.originX + a.size - 1;  // tap offsets
+    const int interiorBegin = -first, interiorEnd = a.width - last;
     int x = x0;
     while (x < x1) {
-        if (x < r || x >= a.width - r) {
+        if (x < interiorBegin || x >= interiorEnd) {
             ConvBlockArgs edge = a;
-            edge.kxBegin = -x > -r ? -x : -r;
-            edge.kxEnd = a.width - 1 - x < r ? a.width - 1 - x : r;
+            edge.kxBegin = -x > first ? -x : first;
+            edge.kxEnd = a.width - 1 - x < last ? a.width - 1 - x : last;
             convBlock<V, 1, N>(edge, x, outRow + std::size_t(x) * a.outStride);
             ++x;
             continue;
         }
-        const int end = x1 < a.width - r ? x1 : a.width - r;
-        a.kxBegin = -r;
-        a.kxEnd = r;
+        const int end = x1 < interiorEnd ? x1 : interiorEnd;
+        a.kxBegin = first;
+        a.kxEnd = last;
         for (; x + M <= end; x += M) convBlock<V, M, N>(a, x, outRow + std::size_t(x) * a.outStride);
         if (x < end) convTail<V, N, M - 1>(a, x, end - x, outRow + std::size_t(x) * a.outStride);
         x = end;

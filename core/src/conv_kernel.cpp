@@ -36,7 +36,7 @@ ConvIsa defaultConvIsa() {
 PackedConv::PackedConv(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
                        ConvIsa isa)
     : out_(outChannels), in_(inChannels), size_(size), isa_(isa) {
-    if (outChannels <= 0 || inChannels <= 0 || (size != 1 && size != 3))
+    if (outChannels <= 0 || inChannels <= 0 || size < 1 || size > 3)
         throw Error("convolution: unsupported shape [" + std::to_string(outChannels) + ", " +
                     std::to_string(inChannels) + ", " + std::to_string(size) + ", " + std::to_string(size) + "]");
     if (isa == ConvIsa::Avx512 && !cpuHasAvx512())
@@ -77,18 +77,28 @@ PackedConv::PackedConv(const float* torchWeights, const float* bias, int outChan
 
 void convolveRow(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width, int y,
                  int x0, int x1, Activation activation, float* outputRow) {
-    const int r = conv.size() / 2;
+    ConvPlacement centred;
+    centred.originY = centred.originX = -(conv.size() / 2);
+    centred.outPixelStride = conv.outChannels();
+    convolveRowPlaced(conv, sources, sourceCount, height, width, y, x0, x1, activation, centred, outputRow);
+}
+
+void convolveRowPlaced(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width,
+                       int y, int x0, int x1, Activation activation, const ConvPlacement& placement,
+                       float* outputRow) {
     ConvBlockArgs a{};
     a.sources = sources;
     a.sourceCount = sourceCount;
     a.width = width;
     a.y = y;
-    a.radius = r;
     a.size = conv.size();
-    a.kyBegin = std::max(-r, -y);
-    a.kyEnd = std::min(r, height - 1 - y);
-    a.outStride = conv.outChannels();
+    a.originY = placement.originY;
+    a.originX = placement.originX;
+    a.kyBegin = std::max(placement.originY, -y);
+    a.kyEnd = std::min(placement.originY + conv.size() - 1, height - 1 - y);
+    a.outStride = placement.outPixelStride;
     a.leaky = activation == Activation::LeakyRelu;
+    a.addToOutput = placement.addToOutput;
     const int lanes = conv.vectorLanes();
     for (const PackedConv::Block& block : conv.blocks()) {
         a.weights = conv.weights() + block.offset;

@@ -33,7 +33,7 @@ struct ConvSource {
     bool upsampled = false;
 };
 
-// Weights and bias of a size x size convolution (size 1 or 3), repacked for the kernel.
+// Weights and bias of a size x size convolution (size 1, 2 or 3), repacked for the kernel.
 class PackedConv {
 public:
     PackedConv() = default;
@@ -75,5 +75,18 @@ private:
 // An upsampled source is (height + 1) / 2 x (width + 1) / 2.
 void convolveRow(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width,
                  int y, int x0, int x1, Activation activation, float* outputRow);
+
+// Where a convolution's window sits and where its output goes, for convolveRowPlaced: output
+// pixel (y, x) reads the size x size taps (y + originY + i, x + originX + j) and is written
+// outPixelStride floats after pixel x - 1; with addToOutput it starts from the value already
+// there instead of the bias. convolveRow is origin -size / 2, stride outChannels, no adding.
+struct ConvPlacement {
+    int originY = 0, originX = 0;
+    int outPixelStride = 0;
+    bool addToOutput = false;
+};
+void convolveRowPlaced(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width,
+                       int y, int x0, int x1, Activation activation, const ConvPlacement& placement,
+                       float* outputRow);
 
 }  // namespace affinity

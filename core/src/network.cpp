@@ -31,7 +31,8 @@ public:
 
     // A conv "<prefix>.weight" [out, in, size, size] + "<prefix>.bias" [out] whose input count
     // must be `in` (-1: any).
-    Conv2d conv(const std::string& prefix, int in, int size) {
+    // `upsampled` > 0: the layer reads that many channels of a coarser level upsampled.
+    Conv2d conv(const std::string& prefix, int in, int size, int upsampled = 0) {
         const std::string weightName = prefix + ".weight";
         used_.insert({weightName, prefix + ".bias"});
         const TensorView& w = weights_.tensor(weightName);
@@ -44,14 +45,16 @@ public:
                  std::to_string(in));
         const float* bias = weights_.floats(prefix + ".bias", {out});
         parameters_ += std::int64_t(w.count) + out;
-        return Conv2d(static_cast<const float*>(w.data), bias, out, int(w.shape[1]), size);
+        return Conv2d(static_cast<const float*>(w.data), bias, out, int(w.shape[1]), size, defaultConvIsa(),
+                      upsampled);
     }
 
-    // Convolutions "<prefix>.conv0", "<prefix>.conv1", ... chained from `in` channels.
-    std::vector<Conv2d> block(const std::string& prefix, int in) {
+    // Convolutions "<prefix>.conv0", "<prefix>.conv1", ... chained from `in` channels, of which
+    // the first conv0 reads `upsampled` upsampled (a decoder level).
+    std::vector<Conv2d> block(const std::string& prefix, int in, int upsampled = 0) {
         std::vector<Conv2d> convs;
         for (int j = 0; weights_.has(prefix + ".conv" + std::to_string(j) + ".weight"); ++j) {
-            convs.push_back(conv(prefix + ".conv" + std::to_string(j), in, 3));
+            convs.push_back(conv(prefix + ".conv" + std::to_string(j), in, 3, j == 0 ? upsampled : 0));
             in = convs.back().outChannels();
         }
         if (convs.empty()) fail("missing '" + prefix + ".conv0.weight'");
@@ -135,7 +138,7 @@ Network buildNetwork(const Weights& weights) {
     channels = n.bottleneck.back().outChannels();
     n.decoder.resize(n.encoder.size());
     for (int level = int(n.encoder.size()) - 1; level >= 0; --level) {
-        n.decoder[level] = b.block("unet.dec" + std::to_string(level), channels + skipChannels[level]);
+        n.decoder[level] = b.block("unet.dec" + std::to_string(level), channels + skipChannels[level], channels);
         channels = n.decoder[level].back().outChannels();
     }
     n.head.emplace(b.conv("unet.head", channels, 1));

@@ -21,6 +21,10 @@ struct Float16 {
     static Float16 broadcast(float x) { return {_mm512_set1_ps(x)}; }
     static Float16 load(const float* p) { return {_mm512_load_ps(p)}; }  // 64-byte aligned
     void storeu(float* p) const { _mm512_storeu_ps(p, v); }
+    // Loads lanes [0, count), count in 1..16, the rest 0; memory past them is not read.
+    static Float16 loadPartial(const float* p, int count) {
+        return {_mm512_maskz_loadu_ps(__mmask16((1u << count) - 1u), p)};
+    }
     // Stores lanes [0, count), count in 1..16; memory past them is not touched.
     void storePartial(float* p, int count) const {
         _mm512_mask_storeu_ps(p, __mmask16((1u << count) - 1u), v);

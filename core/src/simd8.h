@@ -24,12 +24,15 @@ struct Float8 {
     static Float8 load(const float* p) { return {_mm256_load_ps(p)}; }  // 32-byte aligned
     static Float8 loadu(const float* p) { return {_mm256_loadu_ps(p)}; }
     void storeu(float* p) const { _mm256_storeu_ps(p, v); }
-    // Stores lanes [0, count), count in 1..8; memory past them is not touched.
-    void storePartial(float* p, int count) const {
+    // Lanes [0, count), count in 1..8, of a mask for maskload / maskstore.
+    static __m256i prefixMask(int count) {
         alignas(32) static constexpr int kPrefix[16] = {-1, -1, -1, -1, -1, -1, -1, -1, 0, 0, 0, 0, 0, 0, 0, 0};
-        const __m256i mask = _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kPrefix + 8 - count));
-        _mm256_maskstore_ps(p, mask, v);
+        return _mm256_loadu_si256(reinterpret_cast<const __m256i*>(kPrefix + 8 - count));
     }
+    // Loads lanes [0, count), count in 1..8, the rest 0; memory past them is not read.
+    static Float8 loadPartial(const float* p, int count) { return {_mm256_maskload_ps(p, prefixMask(count))}; }
+    // Stores lanes [0, count), count in 1..8; memory past them is not touched.
+    void storePartial(float* p, int count) const { _mm256_maskstore_ps(p, prefixMask(count), v); }
     // a * b + c with one rounding.
     friend Float8 fma(Float8 a, Float8 b, Float8 c) { return {_mm256_fmadd_ps(a.v, b.v, c.v)}; }
     friend Float8 operator*(Float8 a, Float8 b) { return {_mm256_mul_ps(a.v, b.v)}; }
@@ -53,6 +56,11 @@ struct Float8 {
     }
     void storeu(float* p) const {
         for (int i = 0; i < kLanes; ++i) p[i] = v[i];
+    }
+    static Float8 loadPartial(const float* p, int count) {
+        Float8 r = zero();
+        for (int i = 0; i < count; ++i) r.v[i] = p[i];
+        return r;
     }
     void storePartial(float* p, int count) const {
         for (int i = 0; i < count; ++i) p[i] = v[i];

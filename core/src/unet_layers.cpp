@@ -20,8 +20,26 @@ std::string shapeText(const FeatureMap& map) {
 }  // namespace
 
 Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
-               ConvIsa isa)
-    : packed_(torchWeights, bias, outChannels, inChannels, size, isa) {}
+               ConvIsa isa, int upsampledChannels)
+    : packed_(torchWeights, bias, outChannels, inChannels, size, isa) {
+    if (size != 1 && size != 3)  // centred windows only (the kernel also packs 2x2)
+        throw Error("Conv2d: unsupported size " + std::to_string(size) + "x" + std::to_string(size));
+    if (upsampledChannels <= 0) return;
+    if (size != 3 || upsampledChannels >= inChannels)
+        throw Error("Conv2d: an upsampled input of " + std::to_string(upsampledChannels) + " channels needs a 3x3 "
+                    "layer with more inputs than that, not " + std::to_string(size) + "x" + std::to_string(size) +
+                    " over " + std::to_string(inChannels));
+    upsampled_.emplace(torchWeights, bias, outChannels, upsampledChannels, inChannels - upsampledChannels, isa);
+}
+
+void Conv2d::row(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
+                 Activation activation, float* outRow) const {
+    if (upsampled_ && sourceCount == 2 && sources[0].upsampled && !sources[1].upsampled &&
+        sources[0].channels == upsampled_->coarseChannels())
+        upsampled_->row(packed_, sources[0], sources[1], height, width, y, x0, x1, activation, outRow);
+    else
+        convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, outRow);
+}
 
 void Conv2d::apply(const FeatureMap& input, Activation activation, FeatureMap& output) const {
     if (input.channels() != inChannels())
@@ -75,7 +93,7 @@ void Conv2d::applyRow(const ConvSource* sources, int sourceCount, int height, in
         throw Error("Conv2d: row " + std::to_string(y) + ", columns " + std::to_string(x0) + ".." +
                     std::to_string(x1) + " are outside a " + std::to_string(height) + "x" + std::to_string(width) +
                     " image");
-    convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, outRow);
+    row(sources, sourceCount, height, width, y, x0, x1, activation, outRow);
 }
 
 void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
@@ -92,7 +110,7 @@ void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int wid
         const int y = int(task / tiles);
         const int x0 = int(task % tiles) * kConvTileWidth;
         const int x1 = std::min(width, x0 + kConvTileWidth);
-        convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0));
+        row(sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0));
     }
 }
 

@@ -3,8 +3,11 @@
 // channel concatenation of two inputs without copying it), 2x2 max pooling with ceil mode,
 // nearest-neighbour upsampling. Semantics: docs/MODEL.md section 4. Multithreaded (OpenMP)
 // and vectorised; results do not depend on the thread count.
+#include <optional>
+
 #include "conv_kernel.h"
 #include "feature_map.h"
+#include "upsampled_conv.h"
 
 namespace affinity {
 
@@ -17,9 +20,13 @@ class Conv2d {
 public:
     // torchWeights: [outChannels][inChannels][size][size] (torch layout); size is 1 or 3.
     // bias: [outChannels]. Throws affinity::Error on an unsupported shape. `isa` picks the
-    // kernel's vector width (the results are bitwise the same).
+    // kernel's vector width (the results are bitwise the same). A decoder layer passes
+    // `upsampledChannels` > 0, the channel count of the coarse level it reads upsampled
+    // (applyUpsampled, or applyRow with an upsampled first source of that many channels): those
+    // run the folded form of upsampled_conv.h, equal up to float rounding, with 4 taps instead
+    // of 9 over the coarse channels.
     Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
-           ConvIsa isa = defaultConvIsa());
+           ConvIsa isa = defaultConvIsa(), int upsampledChannels = 0);
 
     int inChannels() const { return packed_.inChannels(); }
     int outChannels() const { return packed_.outChannels(); }
@@ -34,7 +41,8 @@ public:
     void apply(const FeatureMap& first, const FeatureMap& second, Activation activation, FeatureMap& output) const;
     // The same on concat(upsampleNearest(coarse), skip), output the skip's size, without
     // materialising the upsampled map; coarse must be exactly ceil(h / 2) x ceil(w / 2).
-    // Bitwise equal to upsampleNearest followed by the two-input apply().
+    // Bitwise equal to upsampleNearest followed by the two-input apply(), unless the layer was
+    // built with upsampledChannels = coarse.channels() (then equal up to float rounding).
     void applyUpsampled(const FeatureMap& coarse, const FeatureMap& skip, Activation activation,
                         FeatureMap& output) const;
     // Columns [x0, x1) of output row y for height x width images, on the calling thread, into
@@ -47,8 +55,12 @@ public:
 private:
     void run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
              FeatureMap& output) const;
+    // One row of the output, through the folded form where it applies.
+    void row(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
+             Activation activation, float* outRow) const;
 
     PackedConv packed_;
+    std::optional<UpsampledConv> upsampled_;
 };
 
 // out(y, x) = max over in(2y..2y+1, 2x..2x+1) that exist; out is ceil(h/2) x ceil(w/2).

@@ -89,10 +89,18 @@ bool bitwiseEqual(const FeatureMap& a, const FeatureMap& b) {
 }
 
 // Checks conv against the reference; returns the number of mismatching values.
+int countMismatches(const FeatureMap& output, const ConvWeights& w, const FeatureMap& input, Activation activation);
+
 int checkConv(const ConvWeights& w, const FeatureMap& input, Activation activation) {
     const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size);
     FeatureMap output;
     conv.apply(input, activation, output);
+    return countMismatches(output, w, input, activation);
+}
+
+// The values of `output` that differ from the reference convolution of `input` by more than
+// float rounding allows.
+int countMismatches(const FeatureMap& output, const ConvWeights& w, const FeatureMap& input, Activation activation) {
     EXPECT_EQ(output.height(), input.height());
     EXPECT_EQ(output.width(), input.width());
     EXPECT_EQ(output.channels(), w.out);
@@ -235,11 +243,13 @@ TEST(Conv2d, InstructionSetsAgreeBitwise) {
                 Conv2d(one.weight.data(), one.bias.data(), out, 19, kernel, ConvIsa::Avx512)
                     .apply(skip, Activation::LeakyRelu, wide);
                 ASSERT_TRUE(bitwiseEqual(narrow, wide));
-                Conv2d(two.weight.data(), two.bias.data(), out, 31, kernel, ConvIsa::Avx2)
-                    .applyUpsampled(coarse, skip, Activation::None, narrow);
-                Conv2d(two.weight.data(), two.bias.data(), out, 31, kernel, ConvIsa::Avx512)
-                    .applyUpsampled(coarse, skip, Activation::None, wide);
-                ASSERT_TRUE(bitwiseEqual(narrow, wide));
+                for (const int upsampledChannels : {0, kernel == 3 ? 12 : 0}) {
+                    Conv2d(two.weight.data(), two.bias.data(), out, 31, kernel, ConvIsa::Avx2, upsampledChannels)
+                        .applyUpsampled(coarse, skip, Activation::None, narrow);
+                    Conv2d(two.weight.data(), two.bias.data(), out, 31, kernel, ConvIsa::Avx512, upsampledChannels)
+                        .applyUpsampled(coarse, skip, Activation::None, wide);
+                    ASSERT_TRUE(bitwiseEqual(narrow, wide));
+                }
             }
 }
 
@@ -255,12 +265,63 @@ TEST(Conv2d, DefaultInstructionSetIsTheWidestAvailable) {
     }
 }
 
+TEST(Conv2d, FoldedUpsampledInputMatchesReference) {
+    // A decoder layer (built with upsampledChannels) folds the coarse level's 3x3 taps into 2x2
+    // per row and column parity: against the double-precision reference on the explicit
+    // upsampled concatenation, on even and odd sizes (odd last rows and columns are unfolded).
+    std::mt19937 rng(22);
+    const Size sizes[] = {{1, 1}, {1, 7}, {7, 1}, {2, 2}, {7, 13}, {8, 10}, {9, 12}, {12, 9}, {33, 17}, {4, 40}};
+    const int splits[][2] = {{1, 1}, {3, 5}, {32, 24}, {13, 35}};
+    for (const Size size : sizes)
+        for (const auto& split : splits)
+            for (const int out : {5, 24, 33}) {
+                SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " split " +
+                             std::to_string(split[0]) + "+" + std::to_string(split[1]) + " out " +
+                             std::to_string(out));
+                const FeatureMap coarse = randomMap((size.height + 1) / 2, (size.width + 1) / 2, split[0], rng);
+                const FeatureMap skip = randomMap(size.height, size.width, split[1], rng);
+                const ConvWeights w = randomConv(out, split[0] + split[1], 3, rng);
+                const Conv2d folded(w.weight.data(), w.bias.data(), w.out, w.in, 3, defaultConvIsa(), split[0]);
+                FeatureMap upsampled, output;
+                upsampleNearest(coarse, size.height, size.width, upsampled);
+                const FeatureMap explicitInput = concat(upsampled, skip);
+                folded.applyUpsampled(coarse, skip, Activation::LeakyRelu, output);
+                ASSERT_EQ(countMismatches(output, w, explicitInput, Activation::LeakyRelu), 0);
+                folded.applyUpsampled(coarse, skip, Activation::None, output);
+                ASSERT_EQ(countMismatches(output, w, explicitInput, Activation::None), 0);
+            }
+}
+
+TEST(Conv2d, FoldedFormRejectsAnUnfoldableLayer) {
+    std::mt19937 rng(23);
+    const ConvWeights w = randomConv(4, 6, 3, rng), point = randomConv(4, 6, 1, rng);
+    EXPECT_THROW(Conv2d(w.weight.data(), w.bias.data(), 4, 6, 3, defaultConvIsa(), 6), Error);
+    EXPECT_THROW(Conv2d(point.weight.data(), point.bias.data(), 4, 6, 1, defaultConvIsa(), 2), Error);
+    // Inputs that are not (an upsampled coarse level of that width, a skip) take the ordinary path.
+    const Conv2d folded(w.weight.data(), w.bias.data(), 4, 6, 3, defaultConvIsa(), 2);
+    const FeatureMap input = randomMap(5, 7, 6, rng);
+    FeatureMap output;
+    folded.apply(input, Activation::None, output);
+    EXPECT_EQ(countMismatches(output, w, input, Activation::None), 0);
+}
+
+void checkRowsEqualTheWholeImage(const Conv2d& conv, const FeatureMap& coarse, const FeatureMap& skip);
+
 TEST(Conv2d, RowsEqualTheWholeImage) {
     std::mt19937 rng(14);
     const FeatureMap coarse = randomMap(16, 66, 7, rng);
     const FeatureMap skip = randomMap(31, 131, 5, rng);
     const ConvWeights w = randomConv(19, 12, 3, rng);
-    const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size);
+    // Unfolded and folded: the folded form splits column parities at the odd range starts.
+    for (const int upsampledChannels : {0, 7}) {
+        SCOPED_TRACE("upsampled channels " + std::to_string(upsampledChannels));
+        checkRowsEqualTheWholeImage(
+            Conv2d(w.weight.data(), w.bias.data(), w.out, w.in, w.size, defaultConvIsa(), upsampledChannels), coarse,
+            skip);
+    }
+}
+
+void checkRowsEqualTheWholeImage(const Conv2d& conv, const FeatureMap& coarse, const FeatureMap& skip) {
     FeatureMap whole;
     conv.applyUpsampled(coarse, skip, Activation::LeakyRelu, whole);
     const ConvSource sources[2] = {{coarse.data(), coarse.channels(), true}, {skip.data(), skip.channels()}};
@@ -302,7 +363,8 @@ TEST(Conv2d, ThreadCountDoesNotChangeResults) {
         const ConvWeights w = randomConv(shape[1], shape[0], shape[2], rng);
         const ConvWeights w2 = randomConv(shape[1], shape[0] + 3, shape[2], rng);
         const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size);
-        const Conv2d conv2(w2.weight.data(), w2.bias.data(), w2.out, w2.in, w2.size);
+        const Conv2d conv2(w2.weight.data(), w2.bias.data(), w2.out, w2.in, w2.size, defaultConvIsa(),
+                           shape[2] == 3 ? shape[0] : 0);  // the 3x3 ones fold the upsampled input
         const FeatureMap coarse = randomMap(31, 132, shape[0], rng);
         FeatureMap one, two, oneSkip, twoSkip, oneUp, twoUp;
         omp_set_num_threads(1);
