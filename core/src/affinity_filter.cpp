@@ -10,20 +10,15 @@
 #include <vector>
 
 #include "affinity/error.h"
-#include "fast_exp.h"
+#include "affinity_strips.h"
+#include "conv_kernel.h"
 
 namespace affinity {
 namespace {
 
-constexpr float kEpsilon = 1e-8f;
-constexpr int kLanes = 8;
-constexpr int kStripVectors = 8;
-constexpr int kStripPixels = kStripVectors * kLanes;
+constexpr int kLanes = 8;  // of the row transposes and the warp
 // Filtered signals: RGB radiance, or demodulated diffuse RGB + specular RGB (filter_signal.h).
 constexpr int kSignalChannelCounts[] = {3, 6};
-// Feature counts with a kernel specialised at compile time (feature loop fully unrolled);
-// others use the generic one.
-constexpr int kMaxSpecialisedFeatures = 16;
 
 Vec8f load8(const float* p) {
     Vec8f v;
@@ -38,13 +33,13 @@ Vec8f load8(const float* p) {
 // is transposed once per thread into a ring of slots covering the rows a kernel reaches.
 class PlanarRows {
 public:
-    // `pad` zero columns on the left, `pad + kStripPixels` on the right (a strip starting near
+    // `pad` zero columns on the left, `pad + kMaxStripPixels` on the right (a strip starting near
     // the last pixel reads past it); `span` rows are held at once.
     PlanarRows(std::vector<const FeatureMap*> sources, int pad, int span)
         : sources_(std::move(sources)), width_(sources_.front()->width()), pad_(pad) {
         for (const FeatureMap* source : sources_) planes_ += source->channels();
         // Planes start on 64-byte boundaries relative to the slot.
-        stride_ = (std::size_t(pad_) * 2 + width_ + kStripPixels + 15) / 16 * 16;
+        stride_ = (std::size_t(pad_) * 2 + width_ + kMaxStripPixels + 15) / 16 * 16;
         slots_ = std::max(1, std::min(span, sources_.front()->height()));
         slotRow_.assign(std::size_t(slots_), -1);
         storage_.assign(std::size_t(slots_) * planes_ * stride_, 0.0f);
@@ -130,176 +125,6 @@ private:
     std::vector<float> storage_;
 };
 
-// Everything one output row needs: planar rows of the centre and of each neighbour row.
-struct RowInputs {
-    int width;
-    int features;
-    bool sourceWeights;          // an s plane follows c
-    std::size_t stride;          // of the spatial rows
-    const float* centre;         // features, signal, a, c (s with source weights, b when temporal) at row y
-    const float* const* taps;    // per tap row j = 0..T-1: features and signal, or null outside
-    int tapSize;
-    int dilation;
-    std::size_t temporalStride;  // of the temporal rows
-    const float* const* temporalRows;  // rows y-1, y, y+1: warped features, output, validity
-};
-
-// Sum of squared feature differences between the centre pixels and the pixels at `neighbour`.
-// Four partial sums keep the dependency chain short; the pointers advance plane by plane so the
-// loop needs two address registers rather than one per feature plane.
-template <int kFeatures>
-Vec8f squaredDistance(const float* centre, const float* neighbour, std::size_t centreStride,
-                      std::size_t neighbourStride, int features) {
-    Vec8f partial[4] = {};
-    const int count = kFeatures > 0 ? kFeatures : features;
-    for (int c = 0; c < count; ++c) {
-        const Vec8f d = load8(centre) - load8(neighbour);
-        partial[c % 4] += d * d;
-        centre += centreStride;
-        neighbour += neighbourStride;
-    }
-    return (partial[0] + partial[1]) + (partial[2] + partial[3]);
-}
-
-// The weighted sums of one strip of kStripPixels pixels. Loops run tap by tap over the strip's
-// vectors, which are independent, so the processor overlaps their long exp chains; the
-// accumulators stay in L1.
-template <int kChannels>
-struct StripSums {
-    Vec8f value[kChannels][kStripVectors], weight[kStripVectors];
-};
-
-// Adds one tap, the neighbour at the same offset for every pixel of the strip: `neighbour`
-// points at the features of the first pixel's neighbour, `column` is that neighbour's image
-// column, `signal` its kChannels filtered values; `scale` (null for none) multiplies each
-// weight: the source weight s of a spatial tap, the validity of a temporal one.
-// kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
-template <int kFeatures, int kChannels, bool kCheckColumns>
-void addTaps(StripSums<kChannels>& sums, const Vec8f* negativeBandwidthSquared, const float* centre,
-             std::size_t centreStride, const float* neighbour, std::size_t neighbourStride, const float* signal,
-             const float* scale, int features, int column, int width) {
-    const Vec8i lane = {0, 1, 2, 3, 4, 5, 6, 7};
-    for (int v = 0; v < kStripVectors; ++v) {
-        const int at = v * kLanes;
-        const Vec8f distance =
-            squaredDistance<kFeatures>(centre + at, neighbour + at, centreStride, neighbourStride, features);
-        Vec8f weight = fastExpNonPositive(negativeBandwidthSquared[v] * distance);
-        if (scale != nullptr) weight *= load8(scale + at);
-        if constexpr (kCheckColumns) {
-            const Vec8i columns = lane + (column + at);
-            weight = ((columns >= 0) & (columns < width)) ? weight : Vec8f{};
-        }
-        for (int c = 0; c < kChannels; ++c) sums.value[c][v] += weight * load8(signal + c * neighbourStride + at);
-        sums.weight[v] += weight;
-    }
-}
-
-// Filters the kStripPixels pixels starting at column x of one row (lanes past the image's
-// right edge compute on zero padding and are not stored).
-template <int kFeatures, int kChannels, bool kCheckColumns, bool kTemporal>
-void filterStrip(const RowInputs& in, int x, float* output) {
-    const int features = kFeatures > 0 ? kFeatures : in.features;
-    const std::size_t stride = in.stride;
-    const float* centre = in.centre + x;
-    const float* centreSignal = centre + features * stride;
-    const float* bandwidth = centre + (features + kChannels) * stride;
-    const float* centreWeight = centre + (features + kChannels + 1) * stride;
-    // A neighbour's s plane lies this far after its features (none: every s is 1).
-    const std::ptrdiff_t sourceOffset = in.sourceWeights ? std::ptrdiff_t(features + kChannels + 2) * std::ptrdiff_t(stride) : 0;
-
-    StripSums<kChannels> sums;
-    Vec8f negativeBandwidthSquared[kStripVectors];
-    for (int v = 0; v < kStripVectors; ++v) {
-        const int at = v * kLanes;
-        const Vec8f a = load8(bandwidth + at);
-        negativeBandwidthSquared[v] = -(a * a);
-        const Vec8f c = load8(centreWeight + at);
-        for (int k = 0; k < kChannels; ++k) sums.value[k][v] = c * load8(centreSignal + k * stride + at);
-        sums.weight[v] = c;
-    }
-
-    const int radius = in.tapSize / 2;
-    for (int j = 0; j < in.tapSize; ++j) {
-        const float* tapRow = in.taps[j];
-        if (tapRow == nullptr) continue;
-        for (int i = -radius; i <= radius; ++i) {
-            if (i == 0 && j == radius) continue;  // the centre, weighted by c above
-            const int column = x + i * in.dilation;
-            const float* neighbour = tapRow + column;
-            addTaps<kFeatures, kChannels, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride, neighbour,
-                                                         stride, neighbour + features * stride,
-                                                         in.sourceWeights ? neighbour + sourceOffset : nullptr,
-                                                         features, column, in.width);
-        }
-    }
-
-    if constexpr (kTemporal) {
-        const std::size_t temporalStride = in.temporalStride;
-        const float* temporalBandwidth = centre + (features + kChannels + (in.sourceWeights ? 3 : 2)) * stride;
-        Vec8f negativeTemporalSquared[kStripVectors];
-        for (int v = 0; v < kStripVectors; ++v) {
-            const Vec8f b = load8(temporalBandwidth + v * kLanes);
-            negativeTemporalSquared[v] = -(b * b);
-        }
-        for (int j = 0; j < 3; ++j) {
-            const float* tapRow = in.temporalRows[j];
-            if (tapRow == nullptr) continue;
-            for (int i = -1; i <= 1; ++i) {
-                const int column = x + i;
-                const float* neighbour = tapRow + column;
-                const float* warpedOutput = neighbour + features * temporalStride;
-                addTaps<kFeatures, kChannels, kCheckColumns>(sums, negativeTemporalSquared, centre, stride,
-                                                             neighbour, temporalStride, warpedOutput,
-                                                             warpedOutput + kChannels * temporalStride, features,
-                                                             column, in.width);
-            }
-        }
-    }
-
-    const int count = std::min(kStripPixels, in.width - x);
-    for (int v = 0; v * kLanes < count; ++v) {
-        const Vec8f normaliser = sums.weight[v] + kEpsilon;
-        Vec8f result[kChannels];
-        for (int c = 0; c < kChannels; ++c) result[c] = sums.value[c][v] / normaliser;
-        const int lanes = std::min(kLanes, count - v * kLanes);
-        float* out = output + kChannels * std::size_t(v * kLanes);
-        for (int l = 0; l < lanes; ++l)
-            for (int c = 0; c < kChannels; ++c) out[kChannels * l + c] = result[c][l];
-    }
-}
-
-template <int kFeatures, int kChannels, bool kTemporal>
-void filterRow(const RowInputs& in, float* output) {
-    // Strips whose taps all lie inside the image need no column test.
-    const int margin = std::max((in.tapSize / 2) * in.dilation, kTemporal ? 1 : 0);
-    for (int x = 0; x < in.width; x += kStripPixels) {
-        const bool interior = x - margin >= 0 && x + kStripPixels - 1 + margin < in.width;
-        float* out = output + kChannels * std::size_t(x);
-        if (interior) {
-            filterStrip<kFeatures, kChannels, false, kTemporal>(in, x, out);
-        } else {
-            filterStrip<kFeatures, kChannels, true, kTemporal>(in, x, out);
-        }
-    }
-}
-
-using RowFunction = void (*)(const RowInputs&, float*);
-
-template <int kChannels, bool kTemporal, int... kCounts>
-RowFunction selectRowFunction(int features, std::integer_sequence<int, kCounts...>) {
-    RowFunction chosen = &filterRow<0, kChannels, kTemporal>;
-    ((features == kCounts + 1 ? (chosen = &filterRow<kCounts + 1, kChannels, kTemporal>, 0) : 0), ...);
-    return chosen;
-}
-
-template <bool kTemporal>
-RowFunction rowFunctionFor(int features, int channels) {
-    constexpr auto counts = std::make_integer_sequence<int, kMaxSpecialisedFeatures>{};
-    static_assert(kSignalChannelCounts[0] == 3 && kSignalChannelCounts[1] == 6);
-    return channels == 3 ? selectRowFunction<3, kTemporal>(features, counts)
-                         : selectRowFunction<6, kTemporal>(features, counts);
-}
-
 // A map must be `width` x `channels` and either the whole image (`imageHeight` rows) or a ring
 // of at least `ringRows` rows (ringRows = imageHeight: the whole image only).
 void checkMap(const FeatureMap& map, const char* name, int imageHeight, int ringRows, int width, int channels) {
@@ -351,9 +176,19 @@ bool isInput(const FeatureMap& map, const FeatureMap& radiance, const KernelPara
                                     &map == temporal->features || &map == temporal->valid));
 }
 
+// 16 lanes for AVX-512 (the same bits as 8).
+FilterRowFunction rowFunction(ConvIsa isa, bool temporal, int features, int channels) {
+#if AFFINITY_HAVE_AVX512_KERNEL
+    if (isa == ConvIsa::Avx512) return filterRowFunctionAvx512(temporal, features, channels);
+#endif
+    if (isa == ConvIsa::Avx512) throw Error("affinity filter: this build has no AVX-512 path");
+    return filterRowFunction<8>(temporal, features, channels);
+}
+
 // The shared driver of both passes: rows in parallel, each thread with its own planar rows.
 void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
-                   const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output) {
+                   const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output,
+                   ConvIsa isa = defaultConvIsa()) {
     if (begin < 0 || end > imageHeight || begin > end)
         throw Error("affinity filter: rows " + std::to_string(begin) + ".." + std::to_string(end) +
                     " are not inside an image of " + std::to_string(imageHeight) + " rows");
@@ -373,8 +208,9 @@ void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int t
     std::vector<const FeatureMap*> spatialSources = {kernel.features, &radiance, kernel.bandwidth, kernel.centre};
     if (kernel.source != nullptr) spatialSources.push_back(kernel.source);
     if (temporal != nullptr) spatialSources.push_back(temporal->bandwidth);
-    const RowFunction filterRowFunction = temporal != nullptr ? rowFunctionFor<true>(features, radiance.channels())
-                                                              : rowFunctionFor<false>(features, radiance.channels());
+    if (isa == ConvIsa::Avx512 && !cpuHasAvx512())
+        throw Error("affinity filter: the AVX-512 path was asked for, but this CPU or build has no AVX-512");
+    const FilterRowFunction filterRowFunctionFor = rowFunction(isa, temporal != nullptr, features, radiance.channels());
 
     // Allocated outside the parallel region so that an allocation failure throws normally.
     const int threads = std::max(1, omp_get_max_threads());
@@ -401,7 +237,7 @@ void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int t
                 taps[std::size_t(j)] = tapY >= 0 && tapY < imageHeight ? spatial.row(tapY) : nullptr;
             }
             // After the neighbours: the centre row must stay in its slot (it is one of them).
-            RowInputs in{};
+            FilterRowInputs in{};
             in.width = width;
             in.features = features;
             in.sourceWeights = kernel.source != nullptr;
@@ -418,7 +254,7 @@ void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int t
                 in.temporalStride = temporalCache->stride();
                 in.temporalRows = temporalTaps;
             }
-            filterRowFunction(in, output.pixel(y % output.height(), 0));
+            filterRowFunctionFor(in, output.pixel(y % output.height(), 0));
         }
     }
 }
@@ -453,6 +289,12 @@ void affinityFilterTemporal(const FeatureMap& radiance, const KernelParams& kern
 void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
                         const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output) {
     runFilterRows(radiance, kernel, tapSize, dilation, temporal, imageHeight, begin, end, output);
+}
+
+void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                        const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output,
+                        ConvIsa isa) {
+    runFilterRows(radiance, kernel, tapSize, dilation, temporal, imageHeight, begin, end, output, isa);
 }
 
 void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& output) {

@@ -1,6 +1,7 @@
 #pragma once
 // The dilated affinity kernels and the temporal affinity kernel of docs/MODEL.md sections
 // 6-7, and bilinear warping by motion vectors (section 3).
+#include "conv_kernel.h"
 #include "feature_map.h"
 
 namespace affinity {
@@ -44,6 +45,12 @@ void affinityFilterTemporal(const FeatureMap& radiance, const KernelParams& kern
 // image's width and the signal's channels and must not be one of the inputs.
 void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
                         const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output);
+// The same with the given vector width instead of the default (defaultConvIsa()): 8 and 16
+// lanes give the same bits (tests compare them). Throws affinity::Error for Avx512 where
+// !cpuHasAvx512().
+void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                        const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output,
+                        ConvIsa isa);
 
 // output(p) = bilinear lookup of `previous` at (x + motion.x, y + motion.y), border-clamped.
 // motion: height x width x 2 floats (frame layout).

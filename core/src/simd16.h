@@ -31,7 +31,8 @@ struct Float16 {
     }
     friend Float16 fma(Float16 a, Float16 b, Float16 c) { return {_mm512_fmadd_ps(a.v, b.v, c.v)}; }
     friend Float16 operator*(Float16 a, Float16 b) { return {_mm512_mul_ps(a.v, b.v)}; }
-    friend Float16 max(Float16 a, Float16 b) { return {_mm512_max_ps(a.v, b.v)}; }
+    // maskz with every lane: GCC 12's plain _mm512_max_ps trips -Wuninitialized.
+    friend Float16 max(Float16 a, Float16 b) { return {_mm512_maskz_max_ps(__mmask16(0xFFFF), a.v, b.v)}; }
 };
 
 }  // namespace

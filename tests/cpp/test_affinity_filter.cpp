@@ -420,6 +420,33 @@ TEST(AffinityFilter, TemporalWithoutValidHistoryEqualsSpatial) {
     }
 }
 
+TEST(AffinityFilter, InstructionSetsAgreeBitwise) {
+    // The reference tests run the default (widest) strips; this holds the 8-lane strips to the
+    // 16-lane ones bit for bit, spatial and temporal, radiance and demodulated signals, source
+    // weights, widths that end inside a strip of either width, specialised and generic
+    // feature counts.
+    if (!cpuHasAvx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the 8-lane strips run here";
+    std::mt19937 rng(31);
+    for (const Size size : {Size{9, 200}, Size{5, 129}, Size{3, 7}})
+        for (const int features : {8, 3, 17})
+            for (const int channels : {3, 6})
+                for (const bool temporal : {false, true}) {
+                    SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " F=" +
+                                 std::to_string(features) + " C=" + std::to_string(channels) +
+                                 (temporal ? " temporal" : ""));
+                    Scene s = randomScene(size.height, size.width, features, rng, channels);
+                    if (features == 3) s.source = randomMap(size.height, size.width, 1, 0.0f, 1.0f, rng);
+                    const TemporalTaps taps{&s.temporalBandwidth, &s.warpedOutput, &s.warpedFeatures,
+                                            &s.warpedValid};
+                    FeatureMap narrow(size.height, size.width, channels), wide(size.height, size.width, channels);
+                    affinityFilterRows(s.radiance, s.kernel(), 5, 2, temporal ? &taps : nullptr, size.height, 0,
+                                       size.height, narrow, ConvIsa::Avx2);
+                    affinityFilterRows(s.radiance, s.kernel(), 5, 2, temporal ? &taps : nullptr, size.height, 0,
+                                       size.height, wide, ConvIsa::Avx512);
+                    ASSERT_EQ(std::memcmp(narrow.data(), wide.data(), narrow.size() * sizeof(float)), 0);
+                }
+}
+
 TEST(AffinityFilter, ResultsDoNotDependOnTheThreadCount) {
     std::mt19937 rng(8);
     const Scene s = randomScene(97, 75, 8, rng);

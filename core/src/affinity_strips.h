@@ -1,0 +1,221 @@
+#pragma once
+// The affinity filter's inner loops (affinity_filter.cpp): one output row in strips of
+// kStripVectors vectors of L lanes, written once over the lane count. The AVX2 build
+// instantiates them with L = 8 (affinity_filter.cpp), the AVX-512 one with L = 16
+// (affinity_filter_avx512.cpp, chosen at run time). Every lane goes through the same
+// operations, so both give the same bits.
+#include <algorithm>
+#include <cstddef>
+#include <cstring>
+#include <utility>
+
+#include "fast_exp.h"
+
+namespace affinity {
+
+// Everything one output row needs: planar rows of the centre and of each neighbour row.
+struct FilterRowInputs {
+    int width;
+    int features;
+    bool sourceWeights;          // an s plane follows c
+    std::size_t stride;          // of the spatial rows
+    const float* centre;         // features, signal, a, c (s with source weights, b when temporal) at row y
+    const float* const* taps;    // per tap row j = 0..T-1: features and signal, or null outside
+    int tapSize;
+    int dilation;
+    std::size_t temporalStride;  // of the temporal rows
+    const float* const* temporalRows;  // rows y-1, y, y+1: warped features, output, validity
+};
+
+using FilterRowFunction = void (*)(const FilterRowInputs&, float*);
+
+// Inputs wider than a row: the widest strip reads this far past the last pixel.
+inline constexpr int kStripVectors = 8;
+inline constexpr int kMaxStripPixels = kStripVectors * 16;
+
+#if AFFINITY_HAVE_AVX512_KERNEL
+// The row function for these inputs with 16 lanes (call only where cpuHasAvx512()).
+FilterRowFunction filterRowFunctionAvx512(bool temporal, int features, int channels);
+#endif
+
+// Internal linkage: each instruction set's translation unit keeps its own copies.
+namespace {
+
+constexpr float kEpsilon = 1e-8f;
+// Feature counts with a kernel specialised at compile time (feature loop fully unrolled);
+// others use the generic one.
+constexpr int kMaxSpecialisedFeatures = 16;
+
+template <int L>
+VecF<L> loadLanes(const float* p) {
+    VecF<L> v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+
+template <int L>
+VecI<L> laneIndices() {
+    VecI<L> lanes;
+    for (int l = 0; l < L; ++l) lanes[l] = l;
+    return lanes;
+}
+
+// Sum of squared feature differences between the centre pixels and the pixels at `neighbour`.
+// Four partial sums keep the dependency chain short; the pointers advance plane by plane so the
+// loop needs two address registers rather than one per feature plane.
+template <int L, int kFeatures>
+VecF<L> squaredDistance(const float* centre, const float* neighbour, std::size_t centreStride,
+                      std::size_t neighbourStride, int features) {
+    VecF<L> partial[4] = {};
+    const int count = kFeatures > 0 ? kFeatures : features;
+    for (int c = 0; c < count; ++c) {
+        const VecF<L> d = loadLanes<L>(centre) - loadLanes<L>(neighbour);
+        partial[c % 4] += d * d;
+        centre += centreStride;
+        neighbour += neighbourStride;
+    }
+    return (partial[0] + partial[1]) + (partial[2] + partial[3]);
+}
+
+// The weighted sums of one strip of (kStripVectors * L) pixels. Loops run tap by tap over the strip's
+// vectors, which are independent, so the processor overlaps their long exp chains; the
+// accumulators stay in L1.
+template <int L, int kChannels>
+struct StripSums {
+    VecF<L> value[kChannels][kStripVectors], weight[kStripVectors];
+};
+
+// Adds one tap, the neighbour at the same offset for every pixel of the strip: `neighbour`
+// points at the features of the first pixel's neighbour, `column` is that neighbour's image
+// column, `signal` its kChannels filtered values; `scale` (null for none) multiplies each
+// weight: the source weight s of a spatial tap, the validity of a temporal one.
+// kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
+template <int L, int kFeatures, int kChannels, bool kCheckColumns>
+void addTaps(StripSums<L, kChannels>& sums, const VecF<L>* negativeBandwidthSquared, const float* centre,
+             std::size_t centreStride, const float* neighbour, std::size_t neighbourStride, const float* signal,
+             const float* scale, int features, int column, int width) {
+    const VecI<L> lane = laneIndices<L>();
+    for (int v = 0; v < kStripVectors; ++v) {
+        const int at = v * L;
+        const VecF<L> distance =
+            squaredDistance<L, kFeatures>(centre + at, neighbour + at, centreStride, neighbourStride, features);
+        VecF<L> weight = fastExpNonPositiveLanes<L>(negativeBandwidthSquared[v] * distance);
+        if (scale != nullptr) weight *= loadLanes<L>(scale + at);
+        if constexpr (kCheckColumns) {
+            const VecI<L> columns = lane + (column + at);
+            weight = ((columns >= 0) & (columns < width)) ? weight : VecF<L>{};
+        }
+        for (int c = 0; c < kChannels; ++c) sums.value[c][v] += weight * loadLanes<L>(signal + c * neighbourStride + at);
+        sums.weight[v] += weight;
+    }
+}
+
+// Filters the (kStripVectors * L) pixels starting at column x of one row (lanes past the image's
+// right edge compute on zero padding and are not stored).
+template <int L, int kFeatures, int kChannels, bool kCheckColumns, bool kTemporal>
+void filterStrip(const FilterRowInputs& in, int x, float* output) {
+    const int features = kFeatures > 0 ? kFeatures : in.features;
+    const std::size_t stride = in.stride;
+    const float* centre = in.centre + x;
+    const float* centreSignal = centre + features * stride;
+    const float* bandwidth = centre + (features + kChannels) * stride;
+    const float* centreWeight = centre + (features + kChannels + 1) * stride;
+    // A neighbour's s plane lies this far after its features (none: every s is 1).
+    const std::ptrdiff_t sourceOffset = in.sourceWeights ? std::ptrdiff_t(features + kChannels + 2) * std::ptrdiff_t(stride) : 0;
+
+    StripSums<L, kChannels> sums;
+    VecF<L> negativeBandwidthSquared[kStripVectors];
+    for (int v = 0; v < kStripVectors; ++v) {
+        const int at = v * L;
+        const VecF<L> a = loadLanes<L>(bandwidth + at);
+        negativeBandwidthSquared[v] = -(a * a);
+        const VecF<L> c = loadLanes<L>(centreWeight + at);
+        for (int k = 0; k < kChannels; ++k) sums.value[k][v] = c * loadLanes<L>(centreSignal + k * stride + at);
+        sums.weight[v] = c;
+    }
+
+    const int radius = in.tapSize / 2;
+    for (int j = 0; j < in.tapSize; ++j) {
+        const float* tapRow = in.taps[j];
+        if (tapRow == nullptr) continue;
+        for (int i = -radius; i <= radius; ++i) {
+            if (i == 0 && j == radius) continue;  // the centre, weighted by c above
+            const int column = x + i * in.dilation;
+            const float* neighbour = tapRow + column;
+            addTaps<L, kFeatures, kChannels, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride, neighbour,
+                                                         stride, neighbour + features * stride,
+                                                         in.sourceWeights ? neighbour + sourceOffset : nullptr,
+                                                         features, column, in.width);
+        }
+    }
+
+    if constexpr (kTemporal) {
+        const std::size_t temporalStride = in.temporalStride;
+        const float* temporalBandwidth = centre + (features + kChannels + (in.sourceWeights ? 3 : 2)) * stride;
+        VecF<L> negativeTemporalSquared[kStripVectors];
+        for (int v = 0; v < kStripVectors; ++v) {
+            const VecF<L> b = loadLanes<L>(temporalBandwidth + v * L);
+            negativeTemporalSquared[v] = -(b * b);
+        }
+        for (int j = 0; j < 3; ++j) {
+            const float* tapRow = in.temporalRows[j];
+            if (tapRow == nullptr) continue;
+            for (int i = -1; i <= 1; ++i) {
+                const int column = x + i;
+                const float* neighbour = tapRow + column;
+                const float* warpedOutput = neighbour + features * temporalStride;
+                addTaps<L, kFeatures, kChannels, kCheckColumns>(sums, negativeTemporalSquared, centre, stride,
+                                                             neighbour, temporalStride, warpedOutput,
+                                                             warpedOutput + kChannels * temporalStride, features,
+                                                             column, in.width);
+            }
+        }
+    }
+
+    const int count = std::min((kStripVectors * L), in.width - x);
+    for (int v = 0; v * L < count; ++v) {
+        const VecF<L> normaliser = sums.weight[v] + kEpsilon;
+        VecF<L> result[kChannels];
+        for (int c = 0; c < kChannels; ++c) result[c] = sums.value[c][v] / normaliser;
+        const int lanes = std::min(L, count - v * L);
+        float* out = output + kChannels * std::size_t(v * L);
+        for (int l = 0; l < lanes; ++l)
+            for (int c = 0; c < kChannels; ++c) out[kChannels * l + c] = result[c][l];
+    }
+}
+
+template <int L, int kFeatures, int kChannels, bool kTemporal>
+void filterRow(const FilterRowInputs& in, float* output) {
+    // Strips whose taps all lie inside the image need no column test.
+    const int margin = std::max((in.tapSize / 2) * in.dilation, kTemporal ? 1 : 0);
+    for (int x = 0; x < in.width; x += (kStripVectors * L)) {
+        const bool interior = x - margin >= 0 && x + (kStripVectors * L) - 1 + margin < in.width;
+        float* out = output + kChannels * std::size_t(x);
+        if (interior) {
+            filterStrip<L, kFeatures, kChannels, false, kTemporal>(in, x, out);
+        } else {
+            filterStrip<L, kFeatures, kChannels, true, kTemporal>(in, x, out);
+        }
+    }
+}
+
+template <int L, int kChannels, bool kTemporal, int... kCounts>
+FilterRowFunction selectRowFunction(int features, std::integer_sequence<int, kCounts...>) {
+    FilterRowFunction chosen = &filterRow<L, 0, kChannels, kTemporal>;
+    ((features == kCounts + 1 ? (chosen = &filterRow<L, kCounts + 1, kChannels, kTemporal>, 0) : 0), ...);
+    return chosen;
+}
+
+// The row function for `features` features and a signal of `channels` (3 or 6) channels.
+template <int L>
+FilterRowFunction filterRowFunction(bool temporal, int features, int channels) {
+    constexpr auto counts = std::make_integer_sequence<int, kMaxSpecialisedFeatures>{};
+    if (temporal)
+        return channels == 3 ? selectRowFunction<L, 3, true>(features, counts)
+                             : selectRowFunction<L, 6, true>(features, counts);
+    return channels == 3 ? selectRowFunction<L, 3, false>(features, counts)
+                         : selectRowFunction<L, 6, false>(features, counts);
+}
+
+}  // namespace
+}  // namespace affinity
