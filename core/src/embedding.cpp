@@ -8,6 +8,7 @@
 #include "affinity/error.h"
 #include "affinity/features.h"
 #include "aligned_allocator.h"
+#include "fast_exp.h"
 #include "fast_log1p.h"
 
 namespace affinity {
@@ -60,43 +61,45 @@ void compressSamples(int count, float depthScale, float* input, float* radiance)
 
 // Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (radiance from the sanitised
 // `radiance`, albedo and emissive flag from the raw `samples`) over its spp samples in order to
-// `sums`, starting from 0 when `first`. Branch-free (the flag and albedo tests mispredicted on
-// noisy data): a sample's radiance is added to both its own sums and the other kind's times 0
-// (adding +0 leaves a sum unchanged, and the sanitised radiance is finite).
+// `sums`, starting from 0 when `first`. One 8-lane vector per sample for each of the lit and
+// the emitted radiance (6 channels used) and the albedo (3 used), branch-free (the flag and
+// albedo tests mispredicted on noisy data): a sample's radiance is added to both its own sums
+// and the other kind's times 0 (adding +0 leaves a sum unchanged, and the sanitised radiance is
+// finite). `radiance` must have 2 readable floats past its last sample.
 void addSampleSums(const float* samples, const float* radiance, int pixels, int spp, bool first, float* sums) {
     constexpr int kSums = Embedding::kSampleSumChannels;
     static_assert(Embedding::kSumSpecular == Embedding::kSumDiffuse + 3 &&
                       Embedding::kSumEmittedSpecular == Embedding::kSumEmittedDiffuse + 3,
                   "diffuse and specular sums are adjacent, as in the radiance");
+    static_assert(channel::kAlbedo + 8 <= kFeatureCount, "an 8-lane load at the albedo stays in the sample");
+    auto load = [](const float* p) {
+        Vec8f v;
+        std::memcpy(&v, p, sizeof v);
+        return v;
+    };
+    const Vec8f largest = broadcast8(3.40282347e38f);
     for (int p = 0; p < pixels; ++p) {
-        // The pixel's sums live in locals while its samples are added (no aliasing with the
-        // inputs to fear, so they stay in registers).
         float* o = sums + std::size_t(p) * kSums;
-        float lit[kRadianceChannels], emitted[kRadianceChannels], albedo[3];
-        for (int c = 0; c < kRadianceChannels; ++c) {
-            lit[c] = first ? 0.0f : o[Embedding::kSumDiffuse + c];
-            emitted[c] = first ? 0.0f : o[Embedding::kSumEmittedDiffuse + c];
+        Vec8f lit{}, emitted{}, albedo{};
+        if (!first) {
+            for (int c = 0; c < kRadianceChannels; ++c) {
+                lit[c] = o[Embedding::kSumDiffuse + c];
+                emitted[c] = o[Embedding::kSumEmittedDiffuse + c];
+            }
+            for (int c = 0; c < 3; ++c) albedo[c] = o[Embedding::kSumAlbedo + c];
         }
-        for (int c = 0; c < 3; ++c) albedo[c] = first ? 0.0f : o[Embedding::kSumAlbedo + c];
         for (int s = 0; s < spp; ++s) {
             const std::size_t sample = std::size_t(p) * spp + std::size_t(s);
-            const float* r = radiance + sample * kRadianceChannels;
+            const Vec8f r = load(radiance + sample * kRadianceChannels);
             const float* raw = samples + sample * kFeatureCount;
             // Bypassed light: an emitter or the sky seen directly (through a mirror or glass the
             // path's choices make it as noisy as any other light). False for NaN flags.
-            // (bitwise &: no branch to mispredict).
             const float isEmitted =
                 float(int(raw[channel::kEmissive] > 0.5f) & int(!(raw[channel::kSpecularBounce] > 0.5f)));
-            const float isLit = 1.0f - isEmitted;
-            for (int c = 0; c < kRadianceChannels; ++c) {
-                lit[c] += r[c] * isLit;
-                emitted[c] += r[c] * isEmitted;
-            }
-            for (int c = 0; c < 3; ++c) {
-                const float a = raw[channel::kAlbedo + c];
-                const bool finitePositive = int(a > 0.0f) & int(a <= 3.40282347e38f);  // false for NaN
-                albedo[c] += finitePositive ? a : 0.0f;
-            }
+            lit += r * (1.0f - isEmitted);
+            emitted += r * isEmitted;
+            const Vec8f a = load(raw + channel::kAlbedo);
+            albedo += (a > 0.0f) & (a <= largest) ? a : Vec8f{};  // false for NaN
         }
         for (int c = 0; c < kRadianceChannels; ++c) {
             o[Embedding::kSumDiffuse + c] = lit[c];
@@ -146,7 +149,8 @@ long long Embedding::forEachChunk(const float* samples, long long pixels, int sp
 
 #pragma omp parallel reduction(+ : bad) if (pixels * spp >= 4096)
     {
-        AlignedVector<float> radiance(std::size_t(chunkSamples) * kRadianceChannels);
+        // + 2: addSampleSums reads 8 floats at each sample's 6.
+        AlignedVector<float> radiance(std::size_t(chunkSamples) * kRadianceChannels + 2);
         AlignedVector<float> input(std::size_t(chunkSamples) * kFeatureCount);
         AlignedVector<float> ping(std::size_t(chunkSamples) * widest_);
         AlignedVector<float> pong(std::size_t(chunkSamples) * widest_);
