@@ -14,6 +14,8 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 # BENCH_JSON=FILE keeps the per-model results (one JSON object per line) for scripts/model_ladder.py.
 json_out=${BENCH_JSON:-}
+# BENCH_FRAMES=N (default 8) frames per model, the first untimed: medians of 7 steady the
+# numbers on a shared machine.
 # Idle OpenMP workers sleep instead of spinning, so that back-to-back runs do not slow each other.
 export OMP_WAIT_POLICY=passive
 
@@ -32,7 +34,7 @@ if [ -x "$build/training/affinity_model_tool" ]; then
 fi
 for entry in "${models[@]}"; do
   IFS='=' read -r label file mode <<<"$entry"
-  args=(--size "$size" --spp "$spp" --frames 4)
+  args=(--size "$size" --spp "$spp" --frames "${BENCH_FRAMES:-8}")  # median of all but the first
   [ -n "$file" ] && args+=(--model "$file")
   [ "$mode" = stream ] && args+=(--stream 1)
   isa=${AFFINITY_CONV_ISA:-}
@@ -41,7 +43,7 @@ for entry in "${models[@]}"; do
 done
 [ -n "$json_out" ] && cp "$work/results.jsonl" "$json_out"
 PYTHONPATH=$build/python "$root/.venv/bin/python" - "$size" "$spp" "$work/results.jsonl" <<'PY'
-import json, resource, statistics, sys, time
+import json, os, resource, statistics, sys, time
 
 import numpy as np
 import pyoidn
@@ -54,7 +56,7 @@ albedo = rng.random((height, width, 3), dtype=np.float32)
 normal = rng.standard_normal((height, width, 3)).astype(np.float32)
 normal /= np.linalg.norm(normal, axis=-1, keepdims=True)
 times = []
-for i in range(4):
+for i in range(int(os.environ.get("BENCH_FRAMES", "8"))):
     start = time.perf_counter()
     pyoidn.denoise(color, albedo, normal, hdr=True)
     if i > 0:
