@@ -99,7 +99,7 @@ void addSampleSums(const float* samples, const float* radiance, int pixels, int 
             lit += r * (1.0f - isEmitted);
             emitted += r * isEmitted;
             const Vec8f a = load(raw + channel::kAlbedo);
-            albedo += (a > 0.0f) & (a <= largest) ? a : Vec8f{};  // false for NaN
+            albedo += ((a > 0.0f) & (a <= largest)) ? a : Vec8f{};  // false for NaN
         }
         for (int c = 0; c < kRadianceChannels; ++c) {
             o[Embedding::kSumDiffuse + c] = lit[c];
