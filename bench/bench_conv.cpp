@@ -56,20 +56,6 @@ struct Peak {
 
 // ---- (a) FP32 peak ----------------------------------------------------------------------
 
-// The AVX2 chains: in this translation unit, built like the library (x86-64-v3).
-__attribute__((noinline)) float fmaChainsAvx2Impl(long long steps) {
-    Float8 acc[kFmaChains];
-    for (int k = 0; k < kFmaChains; ++k) acc[k] = Float8::broadcast(0.01f * float(k));
-    const Float8 a = Float8::broadcast(0.999f), b = Float8::broadcast(1e-3f);
-    for (long long i = 0; i < steps; ++i)
-        for (int k = 0; k < kFmaChains; ++k) acc[k] = fma(acc[k], a, b);
-    Float8 sum = acc[0];
-    for (int k = 1; k < kFmaChains; ++k) sum = sum + acc[k];
-    float lanes[Float8::kLanes];
-    sum.storeu(lanes);
-    return lanes[0] + lanes[7];
-}
-
 // Lanes of the FMA loop used for the peak: 16 where the CPU has AVX-512 (on Zen 5 that doubles
 // the peak; on Zen 4 it changes nothing), else 8.
 int peakLanes() {
@@ -83,7 +69,7 @@ float fmaChains(int lanes, long long steps) {
 #if AFFINITY_BENCH_AVX512
     if (lanes == 16) return fmaChainsAvx512(steps);
 #endif
-    return fmaChainsAvx2Impl(steps);
+    return fmaChains<Float8>(steps);
 }
 
 // One parallel run of `steps` per thread on `threads` threads with `lanes`-wide vectors.

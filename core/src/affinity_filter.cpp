@@ -176,12 +176,11 @@ bool isInput(const FeatureMap& map, const FeatureMap& radiance, const KernelPara
                                     &map == temporal->features || &map == temporal->valid));
 }
 
-// 16 lanes for AVX-512 (the same bits as 8).
+// 16 lanes for AVX-512 (the same bits as 8); the caller has checked that the CPU has it.
 FilterRowFunction rowFunction(ConvIsa isa, bool temporal, int features, int channels) {
 #if AFFINITY_HAVE_AVX512_KERNEL
     if (isa == ConvIsa::Avx512) return filterRowFunctionAvx512(temporal, features, channels);
 #endif
-    if (isa == ConvIsa::Avx512) throw Error("affinity filter: this build has no AVX-512 path");
     return filterRowFunction<8>(temporal, features, channels);
 }
 

@@ -45,7 +45,6 @@ public:
     int outChannels() const { return out_; }
     int inChannels() const { return in_; }
     int size() const { return size_; }
-    ConvIsa isa() const { return isa_; }
 
     // Lanes per vector: 8 (AVX2) or 16 (AVX-512).
     int vectorLanes() const { return isa_ == ConvIsa::Avx512 ? 16 : 8; }
