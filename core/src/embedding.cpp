@@ -109,6 +109,28 @@ void addSampleSums(const float* samples, const float* radiance, int pixels, int 
     }
 }
 
+// sum[c] (= 0 when `first`) += each of the spp samples' hidden[s][c], in sample order. One
+// vectorised pass over the channels per sample: looping over samples inside the channel loop
+// left the compiler with scalar adds.
+void addSamplesOfPixel(const float* __restrict hidden, int spp, int channels, bool first, float* __restrict sum) {
+    int s = 0;
+    if (first) {
+#pragma omp simd
+        for (int c = 0; c < channels; ++c) sum[c] = hidden[c];
+        s = 1;
+    }
+    for (; s < spp; ++s) {
+        const float* __restrict h = hidden + std::size_t(s) * channels;
+#pragma omp simd
+        for (int c = 0; c < channels; ++c) sum[c] += h[c];
+    }
+}
+
+void scaleValues(float* values, int count, float factor) {
+#pragma omp simd
+    for (int i = 0; i < count; ++i) values[i] *= factor;
+}
+
 }  // namespace
 
 Embedding::Embedding(std::vector<DenseLayer> layers) {
@@ -199,18 +221,11 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
     const float inverseSpp = 1.0f / float(spp);
     return forEachChunk(samples, pixels, spp, depthScale, sampleSums, true,
                         [&](long long p0, int count, const float* hidden, float* mean) {
-                            // Mean over each pixel's samples, added in sample order (one loop
-                            // over channels: a memcpy per pixel was a library call per pixel).
-                            for (int p = 0; p < count; ++p) {
-                                float* m = mean + std::size_t(p) * channels;
-                                const float* h = hidden + std::size_t(p) * spp * channels;
-#pragma omp simd
-                                for (int c = 0; c < channels; ++c) {
-                                    float sum = h[c];
-                                    for (int s = 1; s < spp; ++s) sum += h[std::size_t(s) * channels + c];
-                                    m[c] = sum * inverseSpp;
-                                }
-                            }
+                            // Mean over each pixel's samples, added in sample order.
+                            for (int p = 0; p < count; ++p)
+                                addSamplesOfPixel(hidden + std::size_t(p) * spp * channels, spp, channels, true,
+                                                  mean + std::size_t(p) * channels);
+                            scaleValues(mean, count * channels, inverseSpp);
                             const ConvSource meanSource{mean, channels};
                             convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count,
                                         Activation::None, output.data() + std::size_t(p0) * outChannels());
@@ -239,13 +254,7 @@ long long Embedding::accumulate(const float* samples, int height, int width, int
                         [&](long long p0, int count, const float* hidden, float*) {
                             for (int p = 0; p < count; ++p) {
                                 float* m = hiddenSum.data() + (std::size_t(p0) + std::size_t(p)) * channels;
-                                const float* h = hidden + std::size_t(p) * spp * channels;
-#pragma omp simd
-                                for (int c = 0; c < channels; ++c) {
-                                    float sum = first ? h[c] : m[c] + h[c];
-                                    for (int s = 1; s < spp; ++s) sum += h[std::size_t(s) * channels + c];
-                                    m[c] = sum;
-                                }
+                                addSamplesOfPixel(hidden + std::size_t(p) * spp * channels, spp, channels, first, m);
                             }
                         });
 }
