@@ -77,106 +77,95 @@ VecF<L> squaredDistance(const float* centre, const float* neighbour, std::size_t
     return (partial[0] + partial[1]) + (partial[2] + partial[3]);
 }
 
-// The weighted sums of one strip of (kStripVectors * L) pixels. Loops run tap by tap over the strip's
-// vectors, which are independent, so the processor overlaps their long exp chains; the
-// accumulators stay in L1.
+// The weighted sums of one vector of L pixels.
 template <int L, int kChannels>
-struct StripSums {
-    VecF<L> value[kChannels][kStripVectors], weight[kStripVectors];
+struct VectorSums {
+    VecF<L> value[kChannels], weight;
 };
 
-// Adds one tap, the neighbour at the same offset for every pixel of the strip: `neighbour`
-// points at the features of the first pixel's neighbour, `column` is that neighbour's image
-// column, `signal` its kChannels filtered values; `scale` (null for none) multiplies each
-// weight: the source weight s of a spatial tap, the validity of a temporal one.
+// Adds one tap, the neighbour at the same offset for every lane: `neighbour` points at the
+// features of the first lane's neighbour, `column` is that neighbour's image column, `signal`
+// its kChannels filtered values; `scale` (null for none) multiplies each weight: the source
+// weight s of a spatial tap, the validity of a temporal one.
 // kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
 template <int L, int kFeatures, int kChannels, bool kCheckColumns>
-void addTaps(StripSums<L, kChannels>& sums, const VecF<L>* negativeBandwidthSquared, const float* centre,
-             std::size_t centreStride, const float* neighbour, std::size_t neighbourStride, const float* signal,
-             const float* scale, int features, int column, int width) {
-    const VecI<L> lane = laneIndices<L>();
-    for (int v = 0; v < kStripVectors; ++v) {
-        const int at = v * L;
-        const VecF<L> distance =
-            squaredDistance<L, kFeatures>(centre + at, neighbour + at, centreStride, neighbourStride, features);
-        VecF<L> weight = fastExpNonPositiveLanes<L>(negativeBandwidthSquared[v] * distance);
-        if (scale != nullptr) weight *= loadLanes<L>(scale + at);
-        if constexpr (kCheckColumns) {
-            const VecI<L> columns = lane + (column + at);
-            weight = ((columns >= 0) & (columns < width)) ? weight : VecF<L>{};
-        }
-        for (int c = 0; c < kChannels; ++c) sums.value[c][v] += weight * loadLanes<L>(signal + c * neighbourStride + at);
-        sums.weight[v] += weight;
+void addTap(VectorSums<L, kChannels>& sums, VecF<L> negativeBandwidthSquared, const float* centre,
+            std::size_t centreStride, const float* neighbour, std::size_t neighbourStride, const float* signal,
+            const float* scale, int features, int column, int width) {
+    const VecF<L> distance =
+        squaredDistance<L, kFeatures>(centre, neighbour, centreStride, neighbourStride, features);
+    VecF<L> weight = fastExpNonPositiveLanes<L>(negativeBandwidthSquared * distance);
+    if (scale != nullptr) weight *= loadLanes<L>(scale);
+    if constexpr (kCheckColumns) {
+        const VecI<L> columns = laneIndices<L>() + column;
+        weight = ((columns >= 0) & (columns < width)) ? weight : VecF<L>{};
     }
+    for (int c = 0; c < kChannels; ++c) sums.value[c] += weight * loadLanes<L>(signal + c * neighbourStride);
+    sums.weight += weight;
 }
 
-// Filters the (kStripVectors * L) pixels starting at column x of one row (lanes past the image's
-// right edge compute on zero padding and are not stored).
+// Filters the (kStripVectors * L) pixels starting at column x of one row, one vector of L
+// pixels at a time through every tap: the vector's sums and centre features stay in registers,
+// and the processor overlaps the exp chains of consecutive taps, which are independent. Each
+// lane adds its taps in the same order as any other tiling would. Vectors wholly past the
+// image's right edge are skipped; lanes past it compute on zero padding and are not stored.
 template <int L, int kFeatures, int kChannels, bool kCheckColumns, bool kTemporal>
 void filterStrip(const FilterRowInputs& in, int x, float* output) {
     const int features = kFeatures > 0 ? kFeatures : in.features;
     const std::size_t stride = in.stride;
-    const float* centre = in.centre + x;
-    const float* centreSignal = centre + features * stride;
-    const float* bandwidth = centre + (features + kChannels) * stride;
-    const float* centreWeight = centre + (features + kChannels + 1) * stride;
     // A neighbour's s plane lies this far after its features (none: every s is 1).
     const std::ptrdiff_t sourceOffset = in.sourceWeights ? std::ptrdiff_t(features + kChannels + 2) * std::ptrdiff_t(stride) : 0;
-
-    StripSums<L, kChannels> sums;
-    VecF<L> negativeBandwidthSquared[kStripVectors];
-    for (int v = 0; v < kStripVectors; ++v) {
-        const int at = v * L;
-        const VecF<L> a = loadLanes<L>(bandwidth + at);
-        negativeBandwidthSquared[v] = -(a * a);
-        const VecF<L> c = loadLanes<L>(centreWeight + at);
-        for (int k = 0; k < kChannels; ++k) sums.value[k][v] = c * loadLanes<L>(centreSignal + k * stride + at);
-        sums.weight[v] = c;
-    }
-
     const int radius = in.tapSize / 2;
-    for (int j = 0; j < in.tapSize; ++j) {
-        const float* tapRow = in.taps[j];
-        if (tapRow == nullptr) continue;
-        for (int i = -radius; i <= radius; ++i) {
-            if (i == 0 && j == radius) continue;  // the centre, weighted by c above
-            const int column = x + i * in.dilation;
-            const float* neighbour = tapRow + column;
-            addTaps<L, kFeatures, kChannels, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride, neighbour,
-                                                         stride, neighbour + features * stride,
-                                                         in.sourceWeights ? neighbour + sourceOffset : nullptr,
-                                                         features, column, in.width);
-        }
-    }
+    const int count = std::min((kStripVectors * L), in.width - x);
 
-    if constexpr (kTemporal) {
-        const std::size_t temporalStride = in.temporalStride;
-        const float* temporalBandwidth = centre + (features + kChannels + (in.sourceWeights ? 3 : 2)) * stride;
-        VecF<L> negativeTemporalSquared[kStripVectors];
-        for (int v = 0; v < kStripVectors; ++v) {
-            const VecF<L> b = loadLanes<L>(temporalBandwidth + v * L);
-            negativeTemporalSquared[v] = -(b * b);
-        }
-        for (int j = 0; j < 3; ++j) {
-            const float* tapRow = in.temporalRows[j];
+    for (int v = 0; v * L < count; ++v) {
+        const int at = x + v * L;
+        const float* centre = in.centre + at;
+        const float* centreSignal = centre + features * stride;
+        const VecF<L> a = loadLanes<L>(centre + (features + kChannels) * stride);
+        const VecF<L> negativeBandwidthSquared = -(a * a);
+        const VecF<L> centreWeight = loadLanes<L>(centre + (features + kChannels + 1) * stride);
+        VectorSums<L, kChannels> sums;
+        for (int k = 0; k < kChannels; ++k) sums.value[k] = centreWeight * loadLanes<L>(centreSignal + k * stride);
+        sums.weight = centreWeight;
+
+        for (int j = 0; j < in.tapSize; ++j) {
+            const float* tapRow = in.taps[j];
             if (tapRow == nullptr) continue;
-            for (int i = -1; i <= 1; ++i) {
-                const int column = x + i;
+            for (int i = -radius; i <= radius; ++i) {
+                if (i == 0 && j == radius) continue;  // the centre, weighted by c above
+                const int column = at + i * in.dilation;
                 const float* neighbour = tapRow + column;
-                const float* warpedOutput = neighbour + features * temporalStride;
-                addTaps<L, kFeatures, kChannels, kCheckColumns>(sums, negativeTemporalSquared, centre, stride,
-                                                             neighbour, temporalStride, warpedOutput,
-                                                             warpedOutput + kChannels * temporalStride, features,
-                                                             column, in.width);
+                addTap<L, kFeatures, kChannels, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride,
+                                                               neighbour, stride, neighbour + features * stride,
+                                                               in.sourceWeights ? neighbour + sourceOffset : nullptr,
+                                                               features, column, in.width);
             }
         }
-    }
 
-    const int count = std::min((kStripVectors * L), in.width - x);
-    for (int v = 0; v * L < count; ++v) {
-        const VecF<L> normaliser = sums.weight[v] + kEpsilon;
+        if constexpr (kTemporal) {
+            const std::size_t temporalStride = in.temporalStride;
+            const VecF<L> b =
+                loadLanes<L>(centre + (features + kChannels + (in.sourceWeights ? 3 : 2)) * stride);
+            const VecF<L> negativeTemporalSquared = -(b * b);
+            for (int j = 0; j < 3; ++j) {
+                const float* tapRow = in.temporalRows[j];
+                if (tapRow == nullptr) continue;
+                for (int i = -1; i <= 1; ++i) {
+                    const int column = at + i;
+                    const float* neighbour = tapRow + column;
+                    const float* warpedOutput = neighbour + features * temporalStride;
+                    addTap<L, kFeatures, kChannels, kCheckColumns>(sums, negativeTemporalSquared, centre, stride,
+                                                                   neighbour, temporalStride, warpedOutput,
+                                                                   warpedOutput + kChannels * temporalStride,
+                                                                   features, column, in.width);
+                }
+            }
+        }
+
+        const VecF<L> normaliser = sums.weight + kEpsilon;
         VecF<L> result[kChannels];
-        for (int c = 0; c < kChannels; ++c) result[c] = sums.value[c][v] / normaliser;
+        for (int c = 0; c < kChannels; ++c) result[c] = sums.value[c] / normaliser;
         const int lanes = std::min(L, count - v * L);
         float* out = output + kChannels * std::size_t(v * L);
         for (int l = 0; l < lanes; ++l)
