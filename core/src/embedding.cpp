@@ -19,44 +19,43 @@ constexpr int kChunkSamples = 96;
 constexpr int kRadianceChannels = 6;  // diffuse and specular, in front of the other features
 static_assert(channel::kDiffuse == 0 && channel::kSpecular == 3, "radiance leads the sample");
 
-// The input transform of MODEL.md section 1 for `count` consecutive samples, first half:
-// copies them into `input` ([count][18]), non-finite values read as 0, and their radiance,
-// non-finite and negative values read as 0, into `radiance` ([count][6], contiguous so that the
-// loop vectorises). Returns how many radiance values were non-finite or negative.
-long long sanitiseSamples(const float* samples, int count, float* input, float* radiance) {
-    // Every feature: non-finite values read as 0 (the radiance is then checked and counted below).
-    const int values = count * kFeatureCount;
-#pragma omp simd
-    for (int i = 0; i < values; ++i) {
-        const float v = samples[i];
-        input[i] = std::fabs(v) <= 3.40282347e38f ? v : 0.0f;  // false for NaN and +-Inf
-    }
-    for (int s = 0; s < count; ++s)
-        std::memcpy(radiance + std::size_t(s) * kRadianceChannels, samples + std::size_t(s) * kFeatureCount,
-                    kRadianceChannels * sizeof(float));
-    const int n = count * kRadianceChannels;
-    int bad = 0;
-#pragma omp simd reduction(+ : bad)
-    for (int i = 0; i < n; ++i) {
-        const float v = radiance[i];
-        // False for NaN, negative values and +Inf (-Inf is negative).
-        const bool ok = v >= 0.0f && v <= 3.40282347e38f;
-        bad += ok ? 0 : 1;
-        radiance[i] = ok ? v : 0.0f;
-    }
-    return bad;
-}
-
-// Second half: log(1 + radiance) back into the samples' radiance channels, depth normalised.
-void compressSamples(int count, float depthScale, float* input, float* radiance) {
-    const int n = count * kRadianceChannels;
-#pragma omp simd
-    for (int i = 0; i < n; ++i) radiance[i] = log1pNonNegative(radiance[i]);
+// The input transform of MODEL.md section 1 for `count` consecutive samples into `input`
+// ([count][18]): non-finite values read as 0, radiance (features 0-5) also where negative and
+// then as log(1 + r), depth times depthScale. The sanitised linear radiance goes to `radiance`
+// ([count][6] + 2 floats of padding) for the sample sums. One pass, a sample at a time in
+// 8-lane pieces (features 0-7, 8-15, then 16-17). Returns how many radiance values were
+// non-finite or negative.
+long long prepareSamples(const float* samples, int count, float depthScale, float* input, float* radiance) {
+    static_assert(kFeatureCount == 18 && channel::kDepth == 9, "the lanes below follow features.h");
+    auto load = [](const float* p) {
+        Vec8f v;
+        std::memcpy(&v, p, sizeof v);
+        return v;
+    };
+    auto store = [](float* p, Vec8f v) { std::memcpy(p, &v, sizeof v); };
+    auto finiteOrZero = [](float v) { return std::fabs(v) <= 3.40282347e38f ? v : 0.0f; };
+    const Vec8f largest = broadcast8(3.40282347e38f);
+    const Vec8i isRadiance = Vec8i{0, 1, 2, 3, 4, 5, 6, 7} < kRadianceChannels;
+    const Vec8f depthFactor = Vec8f{1.0f, depthScale, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
+    Vec8i bad{};
     for (int s = 0; s < count; ++s) {
-        float* f = input + std::size_t(s) * kFeatureCount;
-        std::memcpy(f, radiance + std::size_t(s) * kRadianceChannels, kRadianceChannels * sizeof(float));
-        f[channel::kDepth] *= depthScale;
+        const float* raw = samples + std::size_t(s) * kFeatureCount;
+        float* in = input + std::size_t(s) * kFeatureCount;
+        const Vec8f low = load(raw), high = load(raw + 8);
+        // False for NaN and +-Inf; radiance must also not be negative.
+        const Vec8i lowOk = (low >= (isRadiance ? Vec8f{} : -largest)) & (low <= largest);
+        const Vec8i highOk = (high >= -largest) & (high <= largest);
+        bad -= isRadiance & ~lowOk;  // a true comparison is -1
+        const Vec8f lowClean = lowOk ? low : Vec8f{};
+        store(radiance + std::size_t(s) * kRadianceChannels, lowClean);  // lanes 6-7: padding, overwritten next
+        store(in, isRadiance ? log1pNonNegative8(isRadiance ? lowClean : Vec8f{}) : lowClean);
+        store(in + 8, (highOk ? high : Vec8f{}) * depthFactor);
+        in[16] = finiteOrZero(raw[16]);
+        in[17] = finiteOrZero(raw[17]);
     }
+    long long total = 0;
+    for (int l = 0; l < 8; ++l) total += bad[l];
+    return total;
 }
 
 // Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (radiance from the sanitised
@@ -184,11 +183,10 @@ long long Embedding::forEachChunk(const float* samples, long long pixels, int sp
             const int count = int(std::min<long long>(chunkPixels, pixels - p0));
             const int n = count * spp;
             const float* chunkInput = samples + std::size_t(p0) * spp * kFeatureCount;
-            bad += sanitiseSamples(chunkInput, n, input.data(), radiance.data());
+            bad += prepareSamples(chunkInput, n, depthScale, input.data(), radiance.data());
             if (sampleSums)
                 addSampleSums(chunkInput, radiance.data(), count, spp, firstSums,
                               sampleSums->data() + std::size_t(p0) * kSampleSumChannels);
-            compressSamples(n, depthScale, input.data(), radiance.data());
 
             // Hidden layers per sample; `source` is what feeds the next layer.
             ConvSource source{input.data(), kFeatureCount};
