@@ -84,11 +84,12 @@ PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass) {
     // Every other feature: non-finite values read as 0 (the core does the same).
     auto finiteOrZero = [](const at::Tensor& values) { return at::where(at::isfinite(values), values, 0.0); };
 
-    // depthScale = 1 / mean of the positive finite depths (the core does the same), summed in
-    // double so that large frames keep full float precision.
+    // depthScale = 1 / mean of the positive finite depths of every kDepthScaleRowStep-th row
+    // (the core does the same), summed in double so that large frames keep full float precision.
     const at::Tensor depth = finiteOrZero(samples.narrow(2, channel::kDepth, 1));
-    const at::Tensor hit = at::isfinite(depth).logical_and(depth > 0);
-    const at::Tensor depthSum = at::where(hit, depth.to(at::kDouble), 0.0).sum(perFrame);
+    const at::Tensor meanRows = depth.slice(3, 0, depth.size(3), kDepthScaleRowStep);
+    const at::Tensor hit = at::isfinite(meanRows).logical_and(meanRows > 0);
+    const at::Tensor depthSum = at::where(hit, meanRows.to(at::kDouble), 0.0).sum(perFrame);
     const at::Tensor hitCount = hit.sum(perFrame).to(at::kDouble);
     const at::Tensor any = hitCount > 0;
     const at::Tensor scale =

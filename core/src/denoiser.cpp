@@ -49,15 +49,17 @@ inline void copyPixel(const float* from, int count, float* to) {
     }
 }
 
-// 1 / mean depth of the samples that hit something (docs/MODEL.md section 1). Rows are summed
-// in parallel and their sums added in row order, so the result does not depend on the threads.
+// 1 / mean depth of the samples that hit something, over every kDepthScaleRowStep-th row
+// (docs/MODEL.md section 1). Rows are summed in parallel and their sums added in row order, so
+// the result does not depend on the threads.
 float depthScale(const SampleFrameView& frame) {
-    std::vector<double> rowSums(std::size_t(frame.height), 0.0);
-    std::vector<long long> rowCounts(std::size_t(frame.height), 0);
+    const int rows = (frame.height + kDepthScaleRowStep - 1) / kDepthScaleRowStep;
+    std::vector<double> rowSums(std::size_t(rows), 0.0);
+    std::vector<long long> rowCounts(std::size_t(rows), 0);
     const std::size_t rowValues = std::size_t(frame.width) * std::size_t(frame.spp) * kFeatureCount;
 #pragma omp parallel for schedule(static)
-    for (int y = 0; y < frame.height; ++y) {
-        const float* row = frame.samples + std::size_t(y) * rowValues;
+    for (int r = 0; r < rows; ++r) {
+        const float* row = frame.samples + std::size_t(r) * kDepthScaleRowStep * rowValues;
         // Branch-free, four chains: a mispredicted test and one chain of dependent double adds
         // made this pass slower than reading the frame from memory.
         double sums[4] = {0.0, 0.0, 0.0, 0.0};
@@ -73,14 +75,14 @@ float depthScale(const SampleFrameView& frame) {
             for (int chain = 0; chain < 4; ++chain)
                 add(chain, row[(sample + std::size_t(chain)) * kFeatureCount + channel::kDepth]);
         for (; sample < samples; ++sample) add(0, row[sample * kFeatureCount + channel::kDepth]);
-        rowSums[std::size_t(y)] = (sums[0] + sums[1]) + (sums[2] + sums[3]);
-        rowCounts[std::size_t(y)] = (counts[0] + counts[1]) + (counts[2] + counts[3]);
+        rowSums[std::size_t(r)] = (sums[0] + sums[1]) + (sums[2] + sums[3]);
+        rowCounts[std::size_t(r)] = (counts[0] + counts[1]) + (counts[2] + counts[3]);
     }
     double sum = 0.0;
     long long count = 0;
-    for (int y = 0; y < frame.height; ++y) {
-        sum += rowSums[std::size_t(y)];
-        count += rowCounts[std::size_t(y)];
+    for (int r = 0; r < rows; ++r) {
+        sum += rowSums[std::size_t(r)];
+        count += rowCounts[std::size_t(r)];
     }
     return count > 0 ? float(double(count) / sum) : 0.0f;
 }

@@ -427,7 +427,10 @@ TEST(TorchOps, DemodulationAndBypassAreUndoneExactlyWithoutFiltering) {
 }
 
 TEST(TorchOps, SanitisesRadianceAndScalesDepthPerFrame) {
-    torch::Tensor samples = torch::rand({2, 2, 18, 3, 4});
+    torch::Tensor samples = torch::rand({2, 2, 18, 6, 4});
+    // The depth mean reads rows 0 and 4 only (every kDepthScaleRowStep-th): the other rows'
+    // depths are 100 times larger, so a mean over every row would be far off.
+    for (const int row : {1, 2, 3, 5}) samples.narrow(3, row, 1).narrow(2, 9, 1).mul_(100.0f);
     samples[0][0][0][1][1] = std::numeric_limits<float>::quiet_NaN();
     samples[0][1][4][2][3] = std::numeric_limits<float>::infinity();
     samples[1][0][2][0][0] = -5.0f;
@@ -445,7 +448,8 @@ TEST(TorchOps, SanitisesRadianceAndScalesDepthPerFrame) {
     EXPECT_LT(maxAbsDiff(prepared.radiance, (clean.narrow(2, 0, 3) + clean.narrow(2, 3, 3)).mean(1)), 1e-6);
     for (std::int64_t b = 0; b < 2; ++b) {
         const torch::Tensor depth = samples[b].narrow(1, 9, 1);
-        const double scale = 1.0 / depth.masked_select(depth > 0).to(torch::kDouble).mean().item<double>();
+        const torch::Tensor meanRows = depth.index_select(2, torch::tensor({0, 4}));
+        const double scale = 1.0 / meanRows.masked_select(meanRows > 0).to(torch::kDouble).mean().item<double>();
         EXPECT_LT(maxAbsDiff(prepared.networkInput[b].narrow(1, 9, 1), depth * scale), 1e-6) << b;
     }
     EXPECT_TRUE(torch::equal(prepared.networkInput.narrow(2, 10, 8), samples.narrow(2, 10, 8)));

@@ -32,6 +32,9 @@ inline constexpr int kSpecularBounce = 17;// 1: flag, first camera vertex was a 
 }  // namespace channel
 
 inline constexpr int kFeatureCount = 18;
+// The network's depth normalisation (docs/MODEL.md section 1) averages the depths of every
+// kDepthScaleRowStep-th image row, starting at row 0: a quarter of the input to read.
+inline constexpr int kDepthScaleRowStep = 4;
 inline constexpr float kRoughnessFloor = 0.02f;
 
 inline constexpr std::array<FeatureGroup, 10> kFeatureGroups{{
