@@ -3,7 +3,8 @@
 # same machine in the same run: bench_denoiser (core, C++) for the tiny and small (built-in)
 # models and for the paper-sized network (random weights: speed does not depend on their
 # values; needs the training build for affinity_model_tool), then pyoidn on an input of the
-# same size. Prints a markdown table with each stage's median milliseconds.
+# same size, before the first model and after each one. Prints a markdown table with each stage's
+# median milliseconds.
 #   scripts/bench_denoiser.sh [WIDTHxHEIGHT] [SPP]        (default 1920x1080, 4)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -32,24 +33,16 @@ if [ -x "$build/training/affinity_model_tool" ]; then
   "$build/training/affinity_model_tool" init --preset paper --seed 1 --out "$work/paper.affw" >/dev/null
   models+=("paper=$work/paper.affw")
 fi
-for entry in "${models[@]}"; do
-  IFS='=' read -r label file mode <<<"$entry"
-  args=(--size "$size" --spp "$spp" --frames "${BENCH_FRAMES:-8}")  # median of all but the first
-  [ -n "$file" ] && args+=(--model "$file")
-  [ "$mode" = stream ] && args+=(--stream 1)
-  isa=${AFFINITY_CONV_ISA:-}
-  [ "$mode" = avx2 ] && isa=avx2
-  echo "{\"label\": \"$label\", \"result\": $(AFFINITY_CONV_ISA=$isa "$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"
-done
-[ -n "$json_out" ] && cp "$work/results.jsonl" "$json_out"
-PYTHONPATH=$build/python "$root/.venv/bin/python" - "$size" "$spp" "$work/results.jsonl" <<'PY'
+# OpenImageDenoise is timed before the first model and after each one: a model's baseline is the
+# mean of the OIDN runs on either side of it, so a change of load on the shared machine during
+# the run moves both sides of each ratio alike.
+cat >"$work/oidn.py" <<'PY'
 import json, os, resource, statistics, sys, time
 
 import numpy as np
 import pyoidn
 
-size, spp, results = sys.argv[1], int(sys.argv[2]), sys.argv[3]
-width, height = map(int, size.split("x"))
+width, height = map(int, sys.argv[1].split("x"))
 rng = np.random.default_rng(1)
 color = rng.random((height, width, 3), dtype=np.float32) * 2
 albedo = rng.random((height, width, 3), dtype=np.float32)
@@ -61,13 +54,35 @@ for i in range(int(os.environ.get("BENCH_FRAMES", "8"))):
     pyoidn.denoise(color, albedo, normal, hdr=True)
     if i > 0:
         times.append(1000 * (time.perf_counter() - start))
-oidn_ms = statistics.median(times)
-oidn_rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+print(json.dumps({"ms": statistics.median(times), "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+PY
+time_oidn() { "$root/.venv/bin/python" "$work/oidn.py" "$size" >>"$work/oidn.jsonl"; }
+time_oidn
+for entry in "${models[@]}"; do
+  IFS='=' read -r label file mode <<<"$entry"
+  args=(--size "$size" --spp "$spp" --frames "${BENCH_FRAMES:-8}")  # median of all but the first
+  [ -n "$file" ] && args+=(--model "$file")
+  [ "$mode" = stream ] && args+=(--stream 1)
+  isa=${AFFINITY_CONV_ISA:-}
+  [ "$mode" = avx2 ] && isa=avx2
+  echo "{\"label\": \"$label\", \"result\": $(AFFINITY_CONV_ISA=$isa "$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"
+  time_oidn
+done
+[ -n "$json_out" ] && cp "$work/results.jsonl" "$json_out"
+PYTHONPATH=$build/python "$root/.venv/bin/python" - "$size" "$spp" "$work/results.jsonl" "$work/oidn.jsonl" <<'PY'
+import json, statistics, sys
 
+size, spp, results, oidn_runs = sys.argv[1], int(sys.argv[2]), sys.argv[3], sys.argv[4]
 rows = [json.loads(line) for line in open(results)]
+oidn = [json.loads(line) for line in open(oidn_runs)]
+# Row i's baseline: the OIDN runs just before and just after it.
+baselines = [(oidn[i]["ms"] + oidn[i + 1]["ms"]) / 2 for i in range(len(rows))]
+oidn_ms = statistics.median(run["ms"] for run in oidn)
+oidn_rss = max(run["peak_rss_mb"] for run in oidn)
 stages = list(rows[0]["result"]["stage_ms"])
 print(f"Denoiser speed at {size}, {spp} spp, 2 threads; OpenImageDenoise (pyoidn, colour + albedo + normal, "
-      f"quality high) measured in the same run. Peak memory (MiB) includes the input: the "
+      f"quality high) timed before the first model and after each one: a row's ratio is over the mean of "
+      f"the OIDN runs on either side of it. Peak memory (MiB) includes the input: the "
       f"{rows[0]['result']['input_frame_mb']:.0f} MiB frame of per-sample features, or one sample's "
       "features for the streamed rows.")
 cpu = {}
@@ -77,13 +92,17 @@ for line in open("/proc/cpuinfo"):
 kernel = "AVX-512 (AVX2 in the rows that say so)" if "avx512f" in cpu.get("flags", "").split() else "AVX2"
 print(f"CPU: {cpu.get('model name', '?')}, family {cpu.get('cpu family', '?')}, model {cpu.get('model', '?')}; "
       f"convolution kernel: {kernel}.\n")
-print("| model | parameters | kFLOP/px | ms/frame | OIDN ms / ours | peak memory MiB | " + " | ".join(stages) + " |")
-print("|---|---|---|---|---|---|" + "---|" * len(stages))
-for row in rows:
+print("| model | parameters | kFLOP/px | ms/frame | OIDN ms beside it | OIDN ms / ours | peak memory MiB | "
+      + " | ".join(stages) + " |")
+print("|---|---|---|---|---|---|---|" + "---|" * len(stages))
+for row, baseline in zip(rows, baselines):
     r = row["result"]
     print(f"| {row['label']} | {r['parameters']:,} | {r['kflop_per_pixel']:.1f} | {r['ms_per_frame']:.0f} | "
-          f"{oidn_ms / r['ms_per_frame']:.2f}x | {r['peak_rss_mb']:.0f} | "
+          f"{baseline:.0f} | {baseline / r['ms_per_frame']:.2f}x | {r['peak_rss_mb']:.0f} | "
           + " | ".join(f"{r['stage_ms'][s]:.0f}" for s in stages) + " |")
-print(f"| OpenImageDenoise 2.5 (high) | | | {oidn_ms:.0f} | 1.00x | {oidn_rss:.0f} | " + " | " * (len(stages) - 1) + " |")
-print(f"\nload average at the end: {open('/proc/loadavg').read().split()[0]}")
+print(f"| OpenImageDenoise 2.5 (high), median of its {len(oidn)} runs | | | {oidn_ms:.0f} | | 1.00x | {oidn_rss:.0f} | "
+      + " | " * (len(stages) - 1) + " |")
+order = ", ".join(str(round(run["ms"])) for run in oidn)
+print(f"\nOIDN runs in order (ms): {order}")
+print(f"load average at the end: {open('/proc/loadavg').read().split()[0]}")
 PY
