@@ -125,8 +125,6 @@ private:
     std::vector<float> storage_;
 };
 
-// A map must be `width` x `channels` and either the whole image (`imageHeight` rows) or a ring
-// of at least `ringRows` rows (ringRows = imageHeight: the whole image only).
 // Rows [begin, end) of warpBilinearRows (checked by the caller); kChannels > 0 fixes the
 // channel count at compile time, 0 reads it from the maps.
 template <int kChannels>
@@ -178,6 +176,8 @@ void warpRows(const FeatureMap& previous, const float* motion, int begin, int en
     }
 }
 
+// A map must be `width` x `channels` and either the whole image (`imageHeight` rows) or a ring
+// of at least `ringRows` rows (ringRows = imageHeight: the whole image only).
 void checkMap(const FeatureMap& map, const char* name, int imageHeight, int ringRows, int width, int channels) {
     const bool heightFits = map.height() == imageHeight || (map.height() >= ringRows && map.height() < imageHeight);
     if (!heightFits || map.width() != width || map.channels() != channels) {

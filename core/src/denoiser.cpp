@@ -37,16 +37,14 @@ void sigmoidInPlace(float* values, int count) {
     }
 }
 
-// Copies `count` floats; the counts of a pixel's features (8) and filtered signal (3, 6) with a
-// constant size, which compiles to register moves where std::copy of a run-time count is a
-// memmove call per pixel (tens of ms per 1080p frame).
+// Copies `count` floats; today's count of a pixel's affinity features (8) with a constant size,
+// which compiles to register moves where std::copy of a run-time count is a memmove call per
+// pixel (tens of ms per 1080p frame).
 inline void copyPixel(const float* from, int count, float* to) {
-    switch (count) {
-        case 3: std::memcpy(to, from, 3 * sizeof(float)); break;
-        case 6: std::memcpy(to, from, 6 * sizeof(float)); break;
-        case 8: std::memcpy(to, from, 8 * sizeof(float)); break;
-        default: std::copy(from, from + count, to);
-    }
+    if (count == 8)
+        std::memcpy(to, from, 8 * sizeof(float));
+    else
+        std::copy(from, from + count, to);
 }
 
 // 1 / mean depth of the samples that hit something, over every kDepthScaleRowStep-th row

@@ -19,6 +19,13 @@ constexpr int kChunkSamples = 96;
 constexpr int kRadianceChannels = 6;  // diffuse and specular, in front of the other features
 static_assert(channel::kDiffuse == 0 && channel::kSpecular == 3, "radiance leads the sample");
 
+// Eight floats from anywhere (no alignment needed).
+Vec8f load8(const float* p) {
+    Vec8f v;
+    std::memcpy(&v, p, sizeof v);
+    return v;
+}
+
 // The input transform of MODEL.md section 1 for `count` consecutive samples into `input`
 // ([count][18]): non-finite values read as 0, radiance (features 0-5) also where negative and
 // then as log(1 + r), depth times depthScale. The sanitised linear radiance goes to `radiance`
@@ -27,11 +34,6 @@ static_assert(channel::kDiffuse == 0 && channel::kSpecular == 3, "radiance leads
 // non-finite or negative.
 long long prepareSamples(const float* samples, int count, float depthScale, float* input, float* radiance) {
     static_assert(kFeatureCount == 18 && channel::kDepth == 9, "the lanes below follow features.h");
-    auto load = [](const float* p) {
-        Vec8f v;
-        std::memcpy(&v, p, sizeof v);
-        return v;
-    };
     auto store = [](float* p, Vec8f v) { std::memcpy(p, &v, sizeof v); };
     auto finiteOrZero = [](float v) { return std::fabs(v) <= 3.40282347e38f ? v : 0.0f; };
     const Vec8f largest = broadcast8(3.40282347e38f);
@@ -41,7 +43,7 @@ long long prepareSamples(const float* samples, int count, float depthScale, floa
     for (int s = 0; s < count; ++s) {
         const float* raw = samples + std::size_t(s) * kFeatureCount;
         float* in = input + std::size_t(s) * kFeatureCount;
-        const Vec8f low = load(raw), high = load(raw + 8);
+        const Vec8f low = load8(raw), high = load8(raw + 8);
         // False for NaN and +-Inf; radiance must also not be negative.
         const Vec8i lowOk = (low >= (isRadiance ? Vec8f{} : -largest)) & (low <= largest);
         const Vec8i highOk = (high >= -largest) & (high <= largest);
@@ -71,11 +73,6 @@ void addSampleSums(const float* samples, const float* radiance, int pixels, int 
                       Embedding::kSumEmittedSpecular == Embedding::kSumEmittedDiffuse + 3,
                   "diffuse and specular sums are adjacent, as in the radiance");
     static_assert(channel::kAlbedo + 8 <= kFeatureCount, "an 8-lane load at the albedo stays in the sample");
-    auto load = [](const float* p) {
-        Vec8f v;
-        std::memcpy(&v, p, sizeof v);
-        return v;
-    };
     const Vec8f largest = broadcast8(3.40282347e38f);
     for (int p = 0; p < pixels; ++p) {
         float* o = sums + std::size_t(p) * kSums;
@@ -89,7 +86,7 @@ void addSampleSums(const float* samples, const float* radiance, int pixels, int 
         }
         for (int s = 0; s < spp; ++s) {
             const std::size_t sample = std::size_t(p) * spp + std::size_t(s);
-            const Vec8f r = load(radiance + sample * kRadianceChannels);
+            const Vec8f r = load8(radiance + sample * kRadianceChannels);
             const float* raw = samples + sample * kFeatureCount;
             // Bypassed light: an emitter or the sky seen directly (through a mirror or glass the
             // path's choices make it as noisy as any other light). False for NaN flags.
@@ -97,7 +94,7 @@ void addSampleSums(const float* samples, const float* radiance, int pixels, int 
                 float(int(raw[channel::kEmissive] > 0.5f) & int(!(raw[channel::kSpecularBounce] > 0.5f)));
             lit += r * (1.0f - isEmitted);
             emitted += r * isEmitted;
-            const Vec8f a = load(raw + channel::kAlbedo);
+            const Vec8f a = load8(raw + channel::kAlbedo);
             albedo += ((a > 0.0f) & (a <= largest)) ? a : Vec8f{};  // false for NaN
         }
         for (int c = 0; c < kRadianceChannels; ++c) {
