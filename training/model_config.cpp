@@ -87,7 +87,7 @@ void validateConfig(const ModelConfig& config) {
         throw Error("model config: an emission lambda needs emission bypass (only bypassed emission has its own)");
 }
 
-std::vector<std::string> presetNames() { return {"tiny", "small", "paper"}; }
+std::vector<std::string> presetNames() { return {"tiny", "small", "medium", "paper"}; }
 
 bool ModelOptions::parseFlag(const std::string& flag) {
     bool* option = flag == "--albedo-demodulation" ? &albedoDemodulation
@@ -111,6 +111,13 @@ ModelConfig presetConfig(const std::string& name, const ModelOptions& options) {
         config.encoder = {{{24}}, {{32}}, {{48}}};
         config.bottleneck = {{64}};
         config.decoder = {{{24}}, {{32}}, {{48}}};
+    } else if (name == "medium") {
+        // small's depths at about 1.4x its widths: the ladder's step above the default, and
+        // what `affinity_model_tool widen` grows a trained small model into.
+        config.embedWidths = {32, 32};
+        config.encoder = {{{32}}, {{48}}, {{64}}};
+        config.bottleneck = {{96}};
+        config.decoder = {{{32}}, {{48}}, {{64}}};
     } else if (name == "paper") {
         // Encoder 64-64-64-80 and a 96-wide bottleneck as in third-party reimplementations;
         // one convolution per decoder level keeps the full-resolution cost down.

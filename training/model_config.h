@@ -66,7 +66,8 @@ struct ModelConfig : ModelOptions {
 void validateConfig(const ModelConfig& config);
 
 // Named sizes: "tiny" (tests), "small" (the default for training on this machine's CPU),
-// "paper" (widths like the paper's third-party reimplementations).
+// "medium" (small's depths, wider), "paper" (widths like the paper's third-party
+// reimplementations).
 std::vector<std::string> presetNames();
 // Throws affinity::Error for unknown names.
 ModelConfig presetConfig(const std::string& name, const ModelOptions& options = {});

@@ -14,4 +14,12 @@ namespace affinity::train {
 // source when the model has no emission bypass or already has an emission lambda.
 std::vector<NamedTensor> withEmissionLambda(const Weights& weights);
 
+// The trained model grown to the wider layers of `fresh` (a newly initialised model of the same
+// depths, embedding, kernels and options, every U-Net width at least the trained one's), computing
+// the same function (Net2Net-style): the trained weights sit in the first channels of every
+// layer, the new channels keep their fresh weights coming in, and every weight from a new channel
+// into an old one is 0. Training can then use the new channels from where the trained model
+// stands. Throws affinity::Error naming what differs when the two do not fit.
+std::vector<NamedTensor> widened(const Weights& trained, const Weights& fresh);
+
 }  // namespace affinity::train

@@ -4,6 +4,7 @@
 //       [--emission-bypass] [--emission-lambda] [--source-weights]
 //   affinity_model_tool describe FILE.affw
 //   affinity_model_tool add-emission-lambda IN.affw OUT.affw
+//   affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -23,7 +24,9 @@ constexpr const char* kUsage =
     "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]\n"
     "           [--emission-bypass] [--emission-lambda] [--source-weights]   (the model options of docs/MODEL.md)\n"
     "       affinity_model_tool describe FILE.affw\n"
-    "       affinity_model_tool add-emission-lambda IN.affw OUT.affw   (same function, one more head channel)\n";
+    "       affinity_model_tool add-emission-lambda IN.affw OUT.affw   (same function, one more head channel)\n"
+    "       affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw   (same function, the preset's wider\n"
+    "           layers; the new channels' incoming weights initialised with seed N)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -108,6 +111,42 @@ int runAddEmissionLambda(const std::vector<std::string>& args) {
     return 0;
 }
 
+int runWiden(const std::vector<std::string>& args) {
+    std::string preset;
+    std::uint64_t seed = 0;
+    std::vector<std::string> files;
+    for (std::size_t i = 0; i < args.size(); ++i) {
+        const std::string& flag = args[i];
+        if (flag == "--preset" || flag == "--seed") {
+            if (i + 1 >= args.size()) throw Error("widen: " + flag + " needs a value");
+            if (flag == "--preset")
+                preset = args[i + 1];
+            else
+                seed = std::stoull(args[i + 1]);
+            ++i;
+        } else {
+            files.push_back(flag);
+        }
+    }
+    if (preset.empty() || files.size() != 2) throw Error("widen: expected --preset NAME [--seed N] IN.affw OUT.affw");
+    if (files[0] == files[1]) throw Error("widen: the output must not overwrite the input");
+    const Weights trained = Weights::fromFile(files[0]);
+    const std::string freshPath = files[1] + ".fresh.tmp";
+    writeInitialModel(presetConfig(preset, configFromWeights(trained)), seed, freshPath);
+    std::vector<NamedTensor> tensors;
+    try {
+        tensors = widened(trained, Weights::fromFile(freshPath));
+    } catch (...) {
+        std::remove(freshPath.c_str());
+        throw;
+    }
+    std::remove(freshPath.c_str());
+    writeWeightsFile(files[1], tensors);
+    std::cout << "wrote " << files[1] << ": " << files[0] << " widened to preset " << preset << " (seed " << seed
+              << ")\n";
+    return 0;
+}
+
 }  // namespace
 }  // namespace affinity::train
 
@@ -122,6 +161,7 @@ int main(int argc, char** argv) {
         if (args[0] == "init") return affinity::train::runInit(rest);
         if (args[0] == "describe") return affinity::train::runDescribe(rest);
         if (args[0] == "add-emission-lambda") return affinity::train::runAddEmissionLambda(rest);
+        if (args[0] == "widen") return affinity::train::runWiden(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

@@ -8,6 +8,7 @@
 #include "affinity/denoiser.h"
 #include "affinity/error.h"
 #include "affinity/weights.h"
+#include "model_config.h"
 #include "model_surgery.h"
 #include "random_model.h"
 #include "torch_reference.h"
@@ -113,6 +114,29 @@ TEST(Parity, AddingAnEmissionLambdaKeepsTheFunction) {
     const std::string radianceModel = std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw";
     EXPECT_THROW(train::withEmissionLambda(Weights::fromFile(radianceModel)), Error);  // no bypass
     std::filesystem::remove(extended);
+}
+
+// The shipped default grown to the medium preset's widths computes what it did (up to the
+// convolutions' summation order, which the wider layers change), and both sides still agree.
+TEST(Parity, WideningATrainedModelKeepsTheFunction) {
+    const std::string original = std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw";
+    const std::string fresh = temporaryPath("medium_fresh.affw"), wide = temporaryPath("medium_widened.affw");
+    const Weights trained = Weights::fromFile(original);
+    train::writeInitialModel(train::presetConfig("medium", train::configFromWeights(trained)), 3, fresh);
+    train::writeWeightsFile(wide, train::widened(trained, Weights::fromFile(fresh)));
+    const Weights grown = Weights::fromFile(wide);
+    EXPECT_GT(grown.tensor("unet.dec0.conv0.weight").count, trained.tensor("unet.dec0.conv0.weight").count);
+    const std::vector<SampleFrame> frames = test::randomSequence(3, 37, 29, 4, 21);
+    Denoiser before(Model::fromFile(original)), after(Model::fromFile(wide));
+    for (std::size_t t = 0; t < frames.size(); ++t)
+        EXPECT_LT(maxRelativeDifference(after.denoise(frames[t]), before.denoise(frames[t])), 1e-5) << "frame " << t;
+    expectParity(wide, frames);
+    // A model cannot be widened into a narrower or differently shaped one.
+    const std::string tiny = temporaryPath("tiny_fresh.affw");
+    train::writeInitialModel(train::presetConfig("tiny"), 3, tiny);
+    EXPECT_THROW(train::widened(trained, Weights::fromFile(tiny)), Error);
+    EXPECT_THROW(train::widened(grown, Weights::fromFile(original)), Error);
+    for (const std::string& path : {fresh, wide, tiny}) std::filesystem::remove(path);
 }
 
 TEST(Parity, EveryPresetAtInitialisation) {
