@@ -141,6 +141,61 @@ std::vector<NamedTensor> widened(const Weights& trained, const Weights& fresh) {
     return tensors;
 }
 
+std::vector<NamedTensor> withNarrowerEmbedding(const Weights& trained, int channels) {
+    const ModelConfig config = configFromWeights(trained);
+    const int E = config.embeddingChannels();
+    if (channels < 1 || channels > E)
+        throw Error("narrow-embedding: " + std::to_string(channels) + " channels is outside 1.." + std::to_string(E) +
+                    " (" + trained.source() + " has E = " + std::to_string(E) + ")");
+    const std::string lastEmbed = "embed." + std::to_string(config.embedWidths.size() - 1);
+    const TensorView& first = trained.tensor("unet.enc0.conv0.weight");  // [out, 2E, 3, 3]
+    const std::int64_t out = first.shape[0], taps = first.shape[2] * first.shape[3];
+    const auto* w = static_cast<const float*>(first.data);
+    std::vector<std::pair<double, int>> weight(std::size_t(E), {0.0, 0});
+    for (int c = 0; c < E; ++c) {
+        weight[std::size_t(c)].second = c;
+        for (std::int64_t o = 0; o < out; ++o)
+            for (int part : {c, E + c})
+                for (std::int64_t t = 0; t < taps; ++t) {
+                    const double v = w[(o * 2 * E + part) * taps + t];
+                    weight[std::size_t(c)].first += v * v;
+                }
+    }
+    std::stable_sort(weight.begin(), weight.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
+    std::vector<int> kept;
+    for (int i = 0; i < channels; ++i) kept.push_back(weight[std::size_t(i)].second);
+    std::sort(kept.begin(), kept.end());
+
+    // Rows (output channels) `kept` of a [E, ...] tensor.
+    auto keepRows = [&](NamedTensor& tensor) {
+        const std::size_t perRow = tensor.floats.size() / std::size_t(tensor.shape[0]);
+        std::vector<float> rows;
+        for (int c : kept)
+            rows.insert(rows.end(), tensor.floats.begin() + std::ptrdiff_t(std::size_t(c) * perRow),
+                        tensor.floats.begin() + std::ptrdiff_t(std::size_t(c + 1) * perRow));
+        tensor.floats = std::move(rows);
+        tensor.shape[0] = channels;
+    };
+    std::vector<NamedTensor> tensors;
+    for (const std::string& name : trained.names()) {
+        tensors.push_back(copyOf(trained.tensor(name)));
+        NamedTensor& tensor = tensors.back();
+        if (name == lastEmbed + ".weight" || name == lastEmbed + ".bias") keepRows(tensor);
+        if (name == "unet.enc0.conv0.weight") {
+            std::vector<float> narrowed;
+            for (std::int64_t o = 0; o < out; ++o)
+                for (int part : {0, E})
+                    for (int c : kept) {
+                        const float* from = w + (o * 2 * E + part + c) * taps;
+                        narrowed.insert(narrowed.end(), from, from + taps);
+                    }
+            tensor.floats = std::move(narrowed);
+            tensor.shape[1] = 2 * channels;
+        }
+    }
+    return tensors;
+}
+
 std::vector<NamedTensor> withEmissionLambda(const Weights& weights) {
     const ModelConfig config = configFromWeights(weights);  // also checks the head's shape
     if (!config.emissionBypass)

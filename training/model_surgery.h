@@ -22,4 +22,12 @@ std::vector<NamedTensor> withEmissionLambda(const Weights& weights);
 // stands. Throws affinity::Error naming what differs when the two do not fit.
 std::vector<NamedTensor> widened(const Weights& trained, const Weights& fresh);
 
+// The trained model with only `channels` of its E embedding channels: those the U-Net's first
+// convolution weighs most (L2 norm of its weights on the channel, current and history parts
+// together), in their original order. Not the same function (unless the dropped channels had no
+// weight), a start for fine-tuning a cheaper model: the embedding is what the denoiser keeps at
+// full resolution twice (current and history), so E sets much of its memory and the U-Net's
+// first convolution's cost. Throws affinity::Error unless 1 <= channels <= E.
+std::vector<NamedTensor> withNarrowerEmbedding(const Weights& trained, int channels);
+
 }  // namespace affinity::train

@@ -5,6 +5,7 @@
 //   affinity_model_tool describe FILE.affw
 //   affinity_model_tool add-emission-lambda IN.affw OUT.affw
 //   affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw
+//   affinity_model_tool narrow-embedding --channels N IN.affw OUT.affw
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -26,7 +27,9 @@ constexpr const char* kUsage =
     "       affinity_model_tool describe FILE.affw\n"
     "       affinity_model_tool add-emission-lambda IN.affw OUT.affw   (same function, one more head channel)\n"
     "       affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw   (same function, the preset's wider\n"
-    "           layers; the new channels' incoming weights initialised with seed N)\n";
+    "           layers; the new channels' incoming weights initialised with seed N)\n"
+    "       affinity_model_tool narrow-embedding --channels N IN.affw OUT.affw   (keeps the N embedding channels\n"
+    "           the U-Net weighs most: a start for fine-tuning, not the same function)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -147,6 +150,16 @@ int runWiden(const std::vector<std::string>& args) {
     return 0;
 }
 
+int runNarrowEmbedding(const std::vector<std::string>& args) {
+    if (args.size() != 4 || args[0] != "--channels")
+        throw Error("narrow-embedding: expected --channels N IN.affw OUT.affw");
+    if (args[2] == args[3]) throw Error("narrow-embedding: the output must not overwrite the input");
+    const int channels = std::stoi(args[1]);
+    writeWeightsFile(args[3], withNarrowerEmbedding(Weights::fromFile(args[2]), channels));
+    std::cout << "wrote " << args[3] << ": " << args[2] << " with " << channels << " embedding channels\n";
+    return 0;
+}
+
 }  // namespace
 }  // namespace affinity::train
 
@@ -162,6 +175,7 @@ int main(int argc, char** argv) {
         if (args[0] == "describe") return affinity::train::runDescribe(rest);
         if (args[0] == "add-emission-lambda") return affinity::train::runAddEmissionLambda(rest);
         if (args[0] == "widen") return affinity::train::runWiden(rest);
+        if (args[0] == "narrow-embedding") return affinity::train::runNarrowEmbedding(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

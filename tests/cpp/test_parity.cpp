@@ -1,5 +1,6 @@
 // Same function in two places: the C++ inference pipeline against the libtorch training
 // model on the same weights and the same multi-frame sequences (docs/MODEL.md).
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 
@@ -137,6 +138,35 @@ TEST(Parity, WideningATrainedModelKeepsTheFunction) {
     EXPECT_THROW(train::widened(trained, Weights::fromFile(tiny)), Error);
     EXPECT_THROW(train::widened(grown, Weights::fromFile(original)), Error);
     for (const std::string& path : {fresh, wide, tiny}) std::filesystem::remove(path);
+}
+
+// Dropping embedding channels the U-Net does not read leaves the function as it was: the
+// default model with half its channels' weights in the first U-Net convolution zeroed, narrowed
+// to the other half, denoises like the zeroed model.
+TEST(Parity, NarrowingTheEmbeddingKeepsTheChannelsTheUnetReads) {
+    const Weights trained = Weights::fromFile(std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw");
+    const int E = train::configFromWeights(trained).embeddingChannels();
+    std::vector<train::NamedTensor> tensors = train::withNarrowerEmbedding(trained, E);  // all kept: a copy
+    for (train::NamedTensor& tensor : tensors) {
+        if (tensor.name != "unet.enc0.conv0.weight") continue;
+        const std::int64_t out = tensor.shape[0], taps = tensor.shape[2] * tensor.shape[3];
+        for (std::int64_t o = 0; o < out; ++o)
+            for (int c = 1; c < E; c += 2)  // every odd channel, current and history parts
+                for (int part : {c, E + c})
+                    std::fill_n(tensor.floats.begin() + std::ptrdiff_t((o * 2 * E + part) * taps), taps, 0.0f);
+    }
+    const std::string zeroed = temporaryPath("zeroed_half.affw"), narrow = temporaryPath("narrow.affw");
+    train::writeWeightsFile(zeroed, tensors);
+    train::writeWeightsFile(narrow, train::withNarrowerEmbedding(Weights::fromFile(zeroed), E / 2));
+    EXPECT_EQ(train::configFromWeights(Weights::fromFile(narrow)).embeddingChannels(), E / 2);
+    const std::vector<SampleFrame> frames = test::randomSequence(3, 31, 22, 4, 8);
+    Denoiser before(Model::fromFile(zeroed)), after(Model::fromFile(narrow));
+    for (std::size_t t = 0; t < frames.size(); ++t)
+        EXPECT_LT(maxRelativeDifference(after.denoise(frames[t]), before.denoise(frames[t])), 1e-5) << "frame " << t;
+    expectParity(narrow, frames);
+    EXPECT_THROW(train::withNarrowerEmbedding(trained, 0), Error);
+    EXPECT_THROW(train::withNarrowerEmbedding(trained, E + 1), Error);
+    for (const std::string& path : {zeroed, narrow}) std::filesystem::remove(path);
 }
 
 TEST(Parity, EveryPresetAtInitialisation) {
