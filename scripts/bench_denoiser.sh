@@ -24,8 +24,12 @@ export OMP_WAIT_POLICY=passive
 # (Denoiser::addSamples, as the Blender extension does), so one sample's features are held;
 # avx2 runs the convolutions' AVX2 kernel where the CPU would pick AVX-512 (the same numbers
 # bit for bit: the rows show what the wider kernel buys on this machine, in the same run).
-models=("tiny=$root/core/models/tiny.affw" "small=" "tiny streamed=$root/core/models/tiny.affw=stream"
-        "small streamed==stream")
+models=("tiny=$root/core/models/tiny.affw" "small=")
+# The other trained rungs of the model ladder (docs/TRAINING.md), where they are in the checkout.
+for rung in small-e16 medium; do
+  [ -f "$root/core/models/${rung/-/_}.affw" ] && models+=("$rung=$root/core/models/${rung/-/_}.affw")
+done
+models+=("tiny streamed=$root/core/models/tiny.affw=stream" "small streamed==stream")
 if grep -q avx512f /proc/cpuinfo 2>/dev/null; then
   models+=("tiny, AVX2 kernel=$root/core/models/tiny.affw=avx2" "small, AVX2 kernel==avx2")
 fi

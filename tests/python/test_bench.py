@@ -45,6 +45,9 @@ def test_every_method_ran_and_every_metric_is_finite(bench: tuple[pathlib.Path, 
     methods = {row["method"] for row in rows}
     expected = {"noisy", "oidn", "svgf", "ours-small", "ours-tiny", "small-single_frame",
                 "small-no_temporal_kernel", "small-one_kernel"}
+    # The ladder's other rungs run by default wherever their weights are in the checkout.
+    models = pathlib.Path(__file__).resolve().parents[2] / "core" / "models"
+    expected |= {f"ours-{rung}" for rung in ("small-e16", "medium") if (models / f"{rung.replace('-', '_')}.affw").is_file()}
     assert methods == expected
     # 2 sequences x 2 spp x every method, plus noisy and oidn at the equal-time chart's 8 spp.
     assert len(rows) == 2 * 2 * len(methods) + 2 * 2

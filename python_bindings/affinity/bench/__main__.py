@@ -54,7 +54,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--affinity-bin", help="the affinity program (default $AFFINITY_BIN or <build>/core/affinity)")
     parser.add_argument("--model", type=parse_model, action="append", default=[], metavar="LABEL=PATH",
                         help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model. The first "
-                             "one's ablations run too. Default: small=builtin tiny=<source>/core/models/tiny.affw")
+                             "one's ablations run too. Default: small=builtin and the ladder's other models in "
+                             "<source>/core/models (tiny, small-e16, medium)")
     parser.add_argument("--methods", help="comma-separated method labels to run (default: all)")
     parser.add_argument("--sequences", help="comma-separated sequence names to run (default: the config's)")
     parser.add_argument("--reference-spp", type=int, help="override the config's reference samples per pixel")
@@ -66,11 +67,14 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
 def default_models(notice: Callable[[str], None]) -> list[tuple[str, str]]:
     models = [("small", BUILT_IN)]
     source = find_source_dir()
-    tiny = source / "core" / "models" / "tiny.affw" if source else None
-    if tiny and tiny.is_file():
-        models.append(("tiny", str(tiny)))
-    else:
-        notice("ours-tiny skipped: core/models/tiny.affw not found (set AFFINITY_SOURCE_DIR or pass --model)")
+    # The other trained rungs of the model ladder (docs/TRAINING.md), smallest first.
+    for label in ("tiny", "small-e16", "medium"):
+        path = source / "core" / "models" / f"{label.replace('-', '_')}.affw" if source else None
+        if path and path.is_file():
+            models.append((label, str(path)))
+        else:
+            notice(f"ours-{label} skipped: core/models/{label.replace('-', '_')}.affw not found "
+                   "(set AFFINITY_SOURCE_DIR or pass --model)")
     return models
 
 
