@@ -37,6 +37,20 @@ std::string joined(const std::vector<int>& widths) {
     return text;
 }
 
+// `value` as a non-negative integer; throws affinity::Error naming `what` (command and option).
+std::uint64_t nonNegativeInteger(const std::string& what, const std::string& value) {
+    std::size_t used = 0;
+    std::uint64_t number = 0;
+    try {
+        number = std::stoull(value, &used);
+    } catch (const std::exception&) {
+        used = 0;
+    }
+    if (used != value.size() || value.empty() || value[0] == '-')
+        throw Error(what + " '" + value + "' is not a non-negative integer");
+    return number;
+}
+
 int runInit(const std::vector<std::string>& args) {
     std::string preset = "small", out;
     std::uint64_t seed = 0;
@@ -49,15 +63,7 @@ int runInit(const std::vector<std::string>& args) {
         if (flag == "--preset") {
             preset = value;
         } else if (flag == "--seed") {
-            std::size_t used = 0;
-            try {
-                seed = std::stoull(value, &used);
-            } catch (const std::exception&) {
-                used = 0;
-            }
-            if (used != value.size() || value.empty() || value[0] == '-') {
-                throw Error("init: --seed '" + value + "' is not a non-negative integer");
-            }
+            seed = nonNegativeInteger("init: --seed", value);
         } else if (flag == "--out") {
             out = value;
         } else {
@@ -125,7 +131,7 @@ int runWiden(const std::vector<std::string>& args) {
             if (flag == "--preset")
                 preset = args[i + 1];
             else
-                seed = std::stoull(args[i + 1]);
+                seed = nonNegativeInteger("widen: --seed", args[i + 1]);
             ++i;
         } else {
             files.push_back(flag);
@@ -154,8 +160,9 @@ int runNarrowEmbedding(const std::vector<std::string>& args) {
     if (args.size() != 4 || args[0] != "--channels")
         throw Error("narrow-embedding: expected --channels N IN.affw OUT.affw");
     if (args[2] == args[3]) throw Error("narrow-embedding: the output must not overwrite the input");
-    const int channels = std::stoi(args[1]);
-    writeWeightsFile(args[3], withNarrowerEmbedding(Weights::fromFile(args[2]), channels));
+    const std::uint64_t channels = nonNegativeInteger("narrow-embedding: --channels", args[1]);
+    if (channels > 4096) throw Error("narrow-embedding: --channels " + args[1] + " is more than any model has");
+    writeWeightsFile(args[3], withNarrowerEmbedding(Weights::fromFile(args[2]), int(channels)));
     std::cout << "wrote " << args[3] << ": " << args[2] << " with " << channels << " embedding channels\n";
     return 0;
 }

@@ -69,12 +69,11 @@ def default_models(notice: Callable[[str], None]) -> list[tuple[str, str]]:
     source = find_source_dir()
     # The other trained rungs of the model ladder (docs/TRAINING.md), smallest first.
     for label in ("tiny", "small-e16", "medium"):
-        path = source / "core" / "models" / f"{label.replace('-', '_')}.affw" if source else None
-        if path and path.is_file():
-            models.append((label, str(path)))
+        file = f"core/models/{label.replace('-', '_')}.affw"
+        if source and (source / file).is_file():
+            models.append((label, str(source / file)))
         else:
-            notice(f"ours-{label} skipped: core/models/{label.replace('-', '_')}.affw not found "
-                   "(set AFFINITY_SOURCE_DIR or pass --model)")
+            notice(f"ours-{label} skipped: {file} not found (set AFFINITY_SOURCE_DIR or pass --model)")
     return models
 
 
