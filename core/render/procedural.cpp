@@ -1,5 +1,6 @@
 #include "render/procedural.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <glm/gtc/constants.hpp>
@@ -70,12 +71,31 @@ int addEmitter(Scene& scene, const glm::vec3& emission) {
     return int(scene.materials.size()) - 1;
 }
 
+// The Sparks variant's emitters, from their own stream of numbers (docs/TRAINING.md "Sparks").
+void addSparks(Scene& scene, std::uint64_t seed) {
+    Draw draw(seed ^ 0x5a4b5d1e37c0ffeeull);
+    const int count = draw.integer(1, 4);
+    for (int i = 0; i < count; ++i) {
+        // Drawn over a decade of energy, so dim glints and blinding sparks are equally common.
+        const float energy = 400.0f * std::pow(15.0f, draw.uniform(0.0f, 1.0f));
+        const glm::vec3 tint = draw.color(0.5f, 1.0f);
+        const glm::vec3 emission = tint * (energy / std::max({tint.x, tint.y, tint.z}));
+        Transform start;
+        start.translate = {draw.uniform(-3.0f, 3.0f), draw.uniform(0.3f, 3.2f), draw.uniform(-3.0f, 2.0f)};
+        start.scale = glm::vec3(draw.uniform(0.01f, 0.04f));
+        Transform end = start;
+        end.translate += draw.vec(-0.8f, 0.8f);
+        scene.objects.push_back({"spark" + std::to_string(i), ShapeType::Sphere, addEmitter(scene, emission),
+                                 {{0.0f, start}, {kProceduralSpan, end}}});
+    }
+}
+
 }  // namespace
 
-Scene proceduralScene(std::uint64_t seed) {
+Scene proceduralScene(std::uint64_t seed, ProceduralVariant variant) {
     Draw draw(seed);
     Scene scene;
-    scene.name = "procedural:" + std::to_string(seed);
+    scene.name = (variant == ProceduralVariant::Sparks ? "procedural-sparks:" : "procedural:") + std::to_string(seed);
     scene.textures.push_back(Texture{});
 
     // Ground, and sometimes a back wall: most real shots have large flat receivers.
@@ -137,6 +157,7 @@ Scene proceduralScene(std::uint64_t seed) {
     scene.camera.keys.push_back({0.0f, position, target});
     scene.camera.keys.push_back({kProceduralSpan, position + draw.vec(-1.5f, 1.5f) * glm::vec3(1, 0.3f, 1),
                                  target + draw.vec(-1.0f, 1.0f) * glm::vec3(1, 0.3f, 1)});
+    if (variant == ProceduralVariant::Sparks) addSparks(scene, seed);
     scene.validate();
     return scene;
 }

@@ -10,6 +10,16 @@ namespace affinity::render {
 // The animation is keyed over frames 0..kProceduralSpan; later frames hold the last pose.
 inline constexpr float kProceduralSpan = 16.0f;
 
-Scene proceduralScene(std::uint64_t seed);
+// What the generator adds to its base scene. Every variant draws the base scene first with the
+// same numbers, so "procedural:SEED" stays the same scene whatever variants exist.
+enum class ProceduralVariant {
+    Base,
+    // 1-4 tiny (sub-pixel to about a pixel wide at training sizes), very bright emitters that
+    // drift across the view: sparks, distant lamps and glints, where a pixel's few samples read
+    // 0 or thousands and the base scenes' lights are 5-60x dimmer and twice as large.
+    Sparks,
+};
+
+Scene proceduralScene(std::uint64_t seed, ProceduralVariant variant = ProceduralVariant::Base);
 
 }  // namespace affinity::render

@@ -1,5 +1,6 @@
 #pragma once
-// Finds a scene by what a user typed: a scene file path, "procedural:SEED", or the name of a
+// Finds a scene by what a user typed: a scene file path, "procedural:SEED" (or
+// "procedural-sparks:SEED", procedural.h), or the name of a
 // bundled test scene in samples/scenes/.
 #include <string>
 #include <vector>

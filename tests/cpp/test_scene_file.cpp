@@ -94,6 +94,32 @@ TEST(SceneFile, ProceduralScenesAreReproducibleAndVaried) {
     EXPECT_EQ(types.size(), 5u);
 }
 
+TEST(SceneFile, TheSparksVariantAddsMovingTinyBrightLampsToTheSameBaseScene) {
+    for (std::uint64_t seed : {3u, 4u, 5u}) {
+        const Scene base = proceduralScene(seed);
+        const Scene sparks = resolveScene("procedural-sparks:" + std::to_string(seed));
+        // The base scene comes first, object for object (its draws are unchanged).
+        ASSERT_GT(sparks.objects.size(), base.objects.size());
+        ASSERT_LE(sparks.objects.size(), base.objects.size() + 4);
+        for (std::size_t i = 0; i < base.objects.size(); ++i)
+            EXPECT_EQ(sparks.objects[i].transformAt(2.0f).matrix(), base.objects[i].transformAt(2.0f).matrix());
+        EXPECT_EQ(sparks.camera.keys[1].position, base.camera.keys[1].position);
+        for (std::size_t i = base.objects.size(); i < sparks.objects.size(); ++i) {
+            const Object& spark = sparks.objects[i];
+            const Material& m = sparks.materials[spark.material];
+            EXPECT_EQ(m.type, MaterialType::Emitter);
+            // As bright as the base scenes' brightest small lamp (400) or up to 15x brighter, and
+            // at most 0.04 in radius (theirs: 0.05).
+            const float brightest = std::max({m.emission.x, m.emission.y, m.emission.z});
+            EXPECT_GE(brightest, 399.0f);
+            EXPECT_LE(brightest, 6001.0f);
+            EXPECT_LE(spark.transformAt(0.0f).scale.x, 0.04f);
+            EXPECT_NE(spark.transformAt(0.0f).translate, spark.transformAt(kProceduralSpan).translate);
+        }
+    }
+    EXPECT_THROW(resolveScene("procedural-sparks:"), Error);
+}
+
 TEST(SceneFile, WrittenScenesReadBackToTheSameScene) {
     Scene original = proceduralScene(11);
     Scene copy = parseScene(sceneToJson(original), "copy");
