@@ -76,7 +76,7 @@ void addSparks(Scene& scene, std::uint64_t seed) {
     Draw draw(seed ^ 0x5a4b5d1e37c0ffeeull);
     const int count = draw.integer(1, 4);
     for (int i = 0; i < count; ++i) {
-        // Drawn over a decade of energy, so dim glints and blinding sparks are equally common.
+        // Log-uniform over 400-6,000, so dim glints and blinding sparks are equally common.
         const float energy = 400.0f * std::pow(15.0f, draw.uniform(0.0f, 1.0f));
         const glm::vec3 tint = draw.color(0.5f, 1.0f);
         const glm::vec3 emission = tint * (energy / std::max({tint.x, tint.y, tint.z}));
@@ -92,10 +92,14 @@ void addSparks(Scene& scene, std::uint64_t seed) {
 
 }  // namespace
 
+const char* proceduralPrefix(ProceduralVariant variant) {
+    return variant == ProceduralVariant::Sparks ? "procedural-sparks:" : "procedural:";
+}
+
 Scene proceduralScene(std::uint64_t seed, ProceduralVariant variant) {
     Draw draw(seed);
     Scene scene;
-    scene.name = (variant == ProceduralVariant::Sparks ? "procedural-sparks:" : "procedural:") + std::to_string(seed);
+    scene.name = proceduralPrefix(variant) + std::to_string(seed);
     scene.textures.push_back(Texture{});
 
     // Ground, and sometimes a back wall: most real shots have large flat receivers.

@@ -20,6 +20,12 @@ enum class ProceduralVariant {
     Sparks,
 };
 
+inline constexpr ProceduralVariant kProceduralVariants[] = {ProceduralVariant::Base, ProceduralVariant::Sparks};
+
+// What a user types before the seed, and the start of the scene's name: "procedural:" or
+// "procedural-sparks:".
+const char* proceduralPrefix(ProceduralVariant variant);
+
 Scene proceduralScene(std::uint64_t seed, ProceduralVariant variant = ProceduralVariant::Base);
 
 }  // namespace affinity::render

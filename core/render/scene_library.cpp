@@ -27,11 +27,12 @@ std::vector<std::string> bundledSceneNames() {
 }
 
 Scene resolveScene(const std::string& nameOrFile) {
-    const std::pair<const char*, ProceduralVariant> procedural[] = {{"procedural:", ProceduralVariant::Base},
-                                                                    {"procedural-sparks:", ProceduralVariant::Sparks}};
-    for (const auto& [prefix, variant] : procedural) {
+    std::string proceduralForms;  // for the error message: "'procedural:SEED' or ..."
+    for (ProceduralVariant variant : kProceduralVariants) {
+        const std::string prefix = proceduralPrefix(variant);
+        proceduralForms += (proceduralForms.empty() ? "'" : " or '") + prefix + "SEED'";
         if (nameOrFile.rfind(prefix, 0) != 0) continue;
-        const std::string digits = nameOrFile.substr(std::string(prefix).size());
+        const std::string digits = nameOrFile.substr(prefix.size());
         if (digits.empty() || digits.find_first_not_of("0123456789") != std::string::npos || digits.size() > 19)
             throw Error("procedural scene '" + nameOrFile + "': the seed must be a non-negative integer");
         return proceduralScene(std::stoull(digits), variant);
@@ -41,7 +42,7 @@ Scene resolveScene(const std::string& nameOrFile) {
     if (fs::is_regular_file(bundled)) return loadSceneFile(bundled.string());
     std::string known;
     for (const std::string& name : bundledSceneNames()) known += (known.empty() ? "" : ", ") + name;
-    throw Error("unknown scene '" + nameOrFile + "': not a file, not 'procedural:SEED' or 'procedural-sparks:SEED', and not a bundled scene (" +
+    throw Error("unknown scene '" + nameOrFile + "': not a file, not " + proceduralForms + ", and not a bundled scene (" +
                 (known.empty() ? "none found in " + bundledScenesDirectory() : known) + ")");
 }
 
