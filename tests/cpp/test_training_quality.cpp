@@ -20,7 +20,7 @@ namespace {
 // Mean over frames of SMAPE(denoised) / mean SMAPE(noisy), measured with the shipped model when
 // it was committed (scripts/train_evaluate.sh figures are in docs/TRAINING.md), and the slack
 // allowed for renderer or pipeline changes that move the numbers a little.
-constexpr double kRecordedRatio = 0.52;  // glossy, 64x48, 4 frames at 4 spp: 0.5175 when committed (2026-12-03)
+constexpr double kRecordedRatio = 0.535;  // glossy, 64x48, 4 frames at 4 spp: 0.5353 when committed (2026-12-03, run 6)
 constexpr double kTolerance = 0.05;
 
 double sequenceRatio(const std::string& scene) {
