@@ -37,6 +37,7 @@ struct Float8 {
     friend Float8 fma(Float8 a, Float8 b, Float8 c) { return {_mm256_fmadd_ps(a.v, b.v, c.v)}; }
     friend Float8 operator*(Float8 a, Float8 b) { return {_mm256_mul_ps(a.v, b.v)}; }
     friend Float8 operator+(Float8 a, Float8 b) { return {_mm256_add_ps(a.v, b.v)}; }
+    friend Float8 operator-(Float8 a, Float8 b) { return {_mm256_sub_ps(a.v, b.v)}; }
     friend Float8 max(Float8 a, Float8 b) { return {_mm256_max_ps(a.v, b.v)}; }
 #else
     float v[kLanes];
@@ -78,6 +79,11 @@ struct Float8 {
     friend Float8 operator+(Float8 a, Float8 b) {
         Float8 r;
         for (int i = 0; i < kLanes; ++i) r.v[i] = a.v[i] + b.v[i];
+        return r;
+    }
+    friend Float8 operator-(Float8 a, Float8 b) {
+        Float8 r;
+        for (int i = 0; i < kLanes; ++i) r.v[i] = a.v[i] - b.v[i];
         return r;
     }
     // Same operand order as maxps: the second operand when either is NaN.

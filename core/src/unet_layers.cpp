@@ -20,10 +20,15 @@ std::string shapeText(const FeatureMap& map) {
 }  // namespace
 
 Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
-               ConvIsa isa, int upsampledChannels)
+               ConvIsa isa, int upsampledChannels, ConvForm form)
     : packed_(torchWeights, bias, outChannels, inChannels, size, isa) {
     if (size != 1 && size != 3)  // centred windows only (the kernel also packs 2x2)
         throw Error("Conv2d: unsupported size " + std::to_string(size) + "x" + std::to_string(size));
+    if (form == ConvForm::Winograd) {
+        if (size != 3 || upsampledChannels > 0)
+            throw Error("Conv2d: the Winograd form needs a 3x3 layer without a folded upsampled input");
+        winograd_.emplace(torchWeights, bias, outChannels, inChannels, isa);
+    }
     if (upsampledChannels <= 0) return;
     if (size != 3 || upsampledChannels >= inChannels)
         throw Error("Conv2d: an upsampled input of " + std::to_string(upsampledChannels) + " channels needs a 3x3 "
@@ -100,9 +105,13 @@ void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int wid
                  FeatureMap& output) const {
     output.resize(height, width, outChannels());
     if (output.empty()) return;
+    const double fmaCount = double(height) * width * outChannels() * inChannels() * size() * size();
+    if (winograd_) {
+        winograd_->apply(sources, sourceCount, height, width, activation, output, fmaCount >= kParallelMinFma);
+        return;
+    }
     const int tiles = (width + kConvTileWidth - 1) / kConvTileWidth;
     const long long tasks = (long long)height * tiles;
-    const double fmaCount = double(height) * width * outChannels() * inChannels() * size() * size();
     // Each task owns whole output pixels, so the split cannot change any value; dynamic
     // scheduling only balances load when another process competes for the cores.
 #pragma omp parallel for schedule(dynamic) if (fmaCount >= kParallelMinFma)

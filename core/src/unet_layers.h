@@ -8,12 +8,18 @@
 #include "conv_kernel.h"
 #include "feature_map.h"
 #include "upsampled_conv.h"
+#include "winograd_conv.h"
 
 namespace affinity {
 
 // Output columns per unit of work: a tile's input rows stay in L2 while each channel block's
 // weights stay in L1. Row-fused callers of Conv2d::applyRow use it too.
 inline constexpr int kConvTileWidth = 128;
+
+// How a 3x3 layer computes whole images (apply, applyUpsampled): directly, or in the Winograd
+// form of winograd_conv.h (16 multiply-adds per 2x2 pixels and channel pair instead of 36;
+// equal up to float rounding). applyRow always runs the direct form.
+enum class ConvForm { Direct, Winograd };
 
 // A convolution's weights, repacked once at load time for the kernel's access pattern.
 class Conv2d {
@@ -24,9 +30,9 @@ public:
     // `upsampledChannels` > 0, the channel count of the coarse level it reads upsampled
     // (applyUpsampled, or applyRow with an upsampled first source of that many channels): those
     // run the folded form of upsampled_conv.h, equal up to float rounding, with 4 taps instead
-    // of 9 over the coarse channels.
+    // of 9 over the coarse channels. `form` Winograd needs size 3 and no folded input.
     Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
-           ConvIsa isa = defaultConvIsa(), int upsampledChannels = 0);
+           ConvIsa isa = defaultConvIsa(), int upsampledChannels = 0, ConvForm form = ConvForm::Direct);
 
     int inChannels() const { return packed_.inChannels(); }
     int outChannels() const { return packed_.outChannels(); }
@@ -37,7 +43,7 @@ public:
     void apply(const FeatureMap& input, Activation activation, FeatureMap& output) const;
     // The same on concat(first, second) along channels (first's channels first): what the
     // decoder does with its skip connections, without materialising the concatenation.
-    // Bitwise equal to apply() on the explicit concatenation.
+    // Bitwise equal to apply() on the explicit concatenation (in either form).
     void apply(const FeatureMap& first, const FeatureMap& second, Activation activation, FeatureMap& output) const;
     // The same on concat(upsampleNearest(coarse), skip), output the skip's size, without
     // materialising the upsampled map; coarse must be exactly ceil(h / 2) x ceil(w / 2).
@@ -48,7 +54,8 @@ public:
     // Columns [x0, x1) of output row y for height x width images, on the calling thread, into
     // outRow (row y's column 0 of an NHWC image with outChannels() channels, or a buffer of
     // width x outChannels() floats): for fusing a layer with what consumes its rows. Results
-    // equal apply()'s. Throws affinity::Error when the channel counts or the range are wrong.
+    // equal apply()'s (up to float rounding in the Winograd form). Throws affinity::Error when
+    // the channel counts or the range are wrong.
     void applyRow(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
                   Activation activation, float* outRow) const;
 
@@ -61,6 +68,7 @@ private:
 
     PackedConv packed_;
     std::optional<UpsampledConv> upsampled_;
+    std::optional<WinogradConv> winograd_;
 };
 
 // out(y, x) = max over in(2y..2y+1, 2x..2x+1) that exist; out is ceil(h/2) x ceil(w/2).

@@ -409,6 +409,89 @@ TEST(Conv2d, ReusesOutputOfAnotherShape) {
     EXPECT_TRUE(bitwiseEqual(output, fresh));
 }
 
+// The Winograd form (winograd_conv.h) against the same double-precision reference and
+// tolerance as the direct form: odd and even sizes (tiles past the last row and column), one
+// and two inputs, an upsampled input read unfolded, wider than a unit of work (96 columns).
+Conv2d winogradConv(const ConvWeights& w, ConvIsa isa = defaultConvIsa()) {
+    return Conv2d(w.weight.data(), w.bias.data(), w.out, w.in, 3, isa, 0, ConvForm::Winograd);
+}
+
+TEST(Conv2dWinograd, MatchesReferenceAllShapes) {
+    std::mt19937 rng(31);
+    const Size sizes[] = {{1, 1}, {1, 7}, {7, 1}, {2, 2}, {7, 13}, {8, 10}, {33, 17}, {5, 301}};
+    for (const Size size : sizes)
+        for (const int in : {1, 3, 8, 13, 24, 35, 64})
+            for (const int out : {1, 5, 16, 24, 33}) {
+                SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " in " +
+                             std::to_string(in) + " out " + std::to_string(out));
+                const FeatureMap input = randomMap(size.height, size.width, in, rng);
+                const ConvWeights w = randomConv(out, in, 3, rng);
+                const Conv2d conv = winogradConv(w);
+                for (const Activation activation : {Activation::LeakyRelu, Activation::None}) {
+                    FeatureMap output;
+                    conv.apply(input, activation, output);
+                    ASSERT_EQ(countMismatches(output, w, input, activation), 0);
+                }
+            }
+}
+
+TEST(Conv2dWinograd, TwoAndUpsampledInputsEqualExplicitOnes) {
+    std::mt19937 rng(32);
+    for (const Size size : {Size{7, 13}, Size{8, 10}, Size{1, 1}, Size{33, 17}})
+        for (const int out : {5, 24}) {
+            SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " out " +
+                         std::to_string(out));
+            const FeatureMap first = randomMap(size.height, size.width, 13, rng);
+            const FeatureMap second = randomMap(size.height, size.width, 32, rng);
+            const FeatureMap coarse = randomMap((size.height + 1) / 2, (size.width + 1) / 2, 13, rng);
+            const ConvWeights w = randomConv(out, 45, 3, rng);
+            const Conv2d conv = winogradConv(w);
+            FeatureMap viaTwo, viaConcat, viaCoarse, upsampled, viaUpsampled;
+            conv.apply(first, second, Activation::LeakyRelu, viaTwo);
+            conv.apply(concat(first, second), Activation::LeakyRelu, viaConcat);
+            ASSERT_TRUE(bitwiseEqual(viaTwo, viaConcat));
+            ASSERT_EQ(countMismatches(viaTwo, w, concat(first, second), Activation::LeakyRelu), 0);
+            upsampleNearest(coarse, size.height, size.width, upsampled);
+            conv.applyUpsampled(coarse, second, Activation::LeakyRelu, viaCoarse);
+            conv.apply(upsampled, second, Activation::LeakyRelu, viaUpsampled);
+            ASSERT_TRUE(bitwiseEqual(viaCoarse, viaUpsampled));
+        }
+}
+
+TEST(Conv2dWinograd, ThreadCountAndInstructionSetChangeNoBit) {
+    std::mt19937 rng(33);
+    const int saved = omp_get_max_threads();
+    for (const auto& shape : {std::pair{64, 24}, std::pair{24, 32}, std::pair{13, 35}}) {
+        SCOPED_TRACE("in " + std::to_string(shape.first) + " out " + std::to_string(shape.second));
+        // Large enough to run in parallel; odd in both directions.
+        const FeatureMap input = randomMap(61, 263, shape.first, rng);
+        const ConvWeights w = randomConv(shape.second, shape.first, 3, rng);
+        const Conv2d conv = winogradConv(w);
+        FeatureMap one, two;
+        omp_set_num_threads(1);
+        conv.apply(input, Activation::LeakyRelu, one);
+        omp_set_num_threads(2);
+        conv.apply(input, Activation::LeakyRelu, two);
+        EXPECT_TRUE(bitwiseEqual(one, two));
+        EXPECT_EQ(countMismatches(two, w, input, Activation::LeakyRelu), 0);
+        if (cpuHasAvx512()) {
+            FeatureMap narrow, wide;
+            winogradConv(w, ConvIsa::Avx2).apply(input, Activation::LeakyRelu, narrow);
+            winogradConv(w, ConvIsa::Avx512).apply(input, Activation::LeakyRelu, wide);
+            EXPECT_TRUE(bitwiseEqual(narrow, wide));
+        }
+    }
+    omp_set_num_threads(saved);
+}
+
+TEST(Conv2dWinograd, RejectsLayersItCannotRun) {
+    std::mt19937 rng(34);
+    const ConvWeights point = randomConv(4, 6, 1, rng), w = randomConv(4, 6, 3, rng);
+    EXPECT_THROW(Conv2d(point.weight.data(), point.bias.data(), 4, 6, 1, defaultConvIsa(), 0, ConvForm::Winograd),
+                 Error);
+    EXPECT_THROW(Conv2d(w.weight.data(), w.bias.data(), 4, 6, 3, defaultConvIsa(), 2, ConvForm::Winograd), Error);
+}
+
 TEST(MaxPool2x2, CeilModeOnOddSizes) {
     std::mt19937 rng(8);
     const Size sizes[] = {{1, 1}, {1, 7}, {7, 1}, {7, 13}, {33, 17}, {2, 2}, {4, 6}, {3, 300}};
