@@ -325,67 +325,73 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
     const int lambdaChannels = net.emissionLambda ? S - 3 : S;
     if (C > lambdaChannels) throw Error("denoise: the filtered channels must accumulate with lambda");
     const int tiles = (columns + kConvTileWidth - 1) / kConvTileWidth;
-    const long long tasks = (long long)(end - begin) * tiles;
+    // The convolution runs two rows at a time (its Winograd form's tiles); a pair reaching past
+    // the band is recomputed by the neighbouring band, but only the band's rows go on.
+    const int firstPair = begin / 2, endPair = (end + 1) / 2;
+    const long long tasks = (long long)(endPair - firstPair) * tiles;
 #pragma omp parallel
     {
-        std::vector<float> decoded(std::size_t(columns) * std::size_t(last.outChannels()));
+        std::vector<float> decoded[2];
+        for (std::vector<float>& row : decoded) row.resize(std::size_t(columns) * std::size_t(last.outChannels()));
         std::vector<float> params(std::size_t(columns) * std::size_t(head.outChannels()));
         // A tile's lambda and emission lambda: only its accumulation reads them.
         std::vector<float> lambda(kConvTileWidth), emissionLambda(kConvTileWidth);
 #pragma omp for schedule(dynamic)
         for (long long task = 0; task < tasks; ++task) {
-            const int y = begin + int(task / tiles);
+            const int y0 = 2 * (firstPair + int(task / tiles));
             const int x0 = int(task % tiles) * kConvTileWidth;
             const int x1 = std::min(columns, x0 + kConvTileWidth);
-            last.applyRow(sources.data(), int(sources.size()), rows, columns, y, x0, x1, Activation::LeakyRelu,
-                          decoded.data());
-            const ConvSource decodedRow{decoded.data(), last.outChannels()};
-            head.applyRow(&decodedRow, 1, 1, columns, 0, x0, x1, Activation::None, params.data());
-            // Scatter the head's channels into the maps, then the sigmoids on each single-channel
-            // map's contiguous stretch of this tile. Rings hold row y at y % height: one division
-            // per map and tile (per pixel, it made this stage 50-100 ms slower at 1080p).
-            auto row = [y](FeatureMap& map) { return map.pixel(y % map.height(), 0); };
-            for (std::size_t k = 0; k < std::size_t(K); ++k) {
-                float* features = row(maps.features[k]);
-                float* bandwidth = row(maps.bandwidth[k]);
-                float* centre = row(maps.centre[k]);
-                float* source = maps.source.empty() ? nullptr : row(maps.source[k]);
-                for (int x = x0; x < x1; ++x) {
-                    const float* base = params.data() + std::size_t(x) * std::size_t(head.outChannels()) + int(k) * G;
-                    copyPixel(base, F, features + std::size_t(x) * F);
-                    bandwidth[x] = base[F];
-                    centre[x] = base[F + 1];
-                    if (source) source[x] = base[F + 2];
+            last.applyRowPair(sources.data(), int(sources.size()), rows, columns, y0, x0, x1, Activation::LeakyRelu,
+                              decoded[0].data(), y0 + 1 < rows ? decoded[1].data() : nullptr);
+            for (int y = std::max(y0, begin); y < std::min(y0 + 2, end); ++y) {
+                const ConvSource decodedRow{decoded[y - y0].data(), last.outChannels()};
+                head.applyRow(&decodedRow, 1, 1, columns, 0, x0, x1, Activation::None, params.data());
+                // Scatter the head's channels into the maps, then the sigmoids on each single-channel
+                // map's contiguous stretch of this tile. Rings hold row y at y % height: one division
+                // per map and tile (per pixel, it made this stage 50-100 ms slower at 1080p).
+                auto row = [y](FeatureMap& map) { return map.pixel(y % map.height(), 0); };
+                for (std::size_t k = 0; k < std::size_t(K); ++k) {
+                    float* features = row(maps.features[k]);
+                    float* bandwidth = row(maps.bandwidth[k]);
+                    float* centre = row(maps.centre[k]);
+                    float* source = maps.source.empty() ? nullptr : row(maps.source[k]);
+                    for (int x = x0; x < x1; ++x) {
+                        const float* base = params.data() + std::size_t(x) * std::size_t(head.outChannels()) + int(k) * G;
+                        copyPixel(base, F, features + std::size_t(x) * F);
+                        bandwidth[x] = base[F];
+                        centre[x] = base[F + 1];
+                        if (source) source[x] = base[F + 2];
+                    }
+                    sigmoidInPlace(centre + x0, x1 - x0);
+                    if (source) sigmoidInPlace(source + x0, x1 - x0);
                 }
-                sigmoidInPlace(centre + x0, x1 - x0);
-                if (source) sigmoidInPlace(source + x0, x1 - x0);
-            }
-            float* temporalBandwidth = row(maps.temporalBandwidth);
-            for (int x = x0; x < x1; ++x) {
-                const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
-                temporalBandwidth[x] = o[K * G];
-                lambda[std::size_t(x - x0)] = o[K * G + 1];
-                if (net.emissionLambda) emissionLambda[std::size_t(x - x0)] = o[K * G + 2];
-            }
-            sigmoidInPlace(lambda.data(), x1 - x0);
-            if (net.emissionLambda) sigmoidInPlace(emissionLambda.data(), x1 - x0);
-            // 3 (continued). history = (1 - lambda) current + lambda history, in place; the
-            // kernels filter the first C channels of the accumulated signal (C <= lambdaChannels).
-            // The filtered copy is stored from the same values: reading the just-stored floats
-            // back as one wider load stalled on store forwarding (a third of this stage's time).
-            float* filtered = row(filterIn);
-            for (int x = x0; x < x1; ++x) {
-                const float l = lambda[std::size_t(x - x0)];
-                const float* e = embedding.pixel(y, x);
-                float* h = historyEmbedding.pixel(y, x);
-                for (int c = 0; c < E; ++c) h[c] = (1.0f - l) * e[c] + l * h[c];
-                const float* current = signal.pixel(y, x);
-                float* accumulated = historySignal.pixel(y, x);
-                float* f = filtered + std::size_t(x) * C;
-                for (int c = 0; c < C; ++c) f[c] = accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
-                for (int c = C; c < lambdaChannels; ++c) accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
-                const float le = emissionLambda[std::size_t(x - x0)];
-                for (int c = lambdaChannels; c < S; ++c) accumulated[c] = (1.0f - le) * current[c] + le * accumulated[c];
+                float* temporalBandwidth = row(maps.temporalBandwidth);
+                for (int x = x0; x < x1; ++x) {
+                    const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
+                    temporalBandwidth[x] = o[K * G];
+                    lambda[std::size_t(x - x0)] = o[K * G + 1];
+                    if (net.emissionLambda) emissionLambda[std::size_t(x - x0)] = o[K * G + 2];
+                }
+                sigmoidInPlace(lambda.data(), x1 - x0);
+                if (net.emissionLambda) sigmoidInPlace(emissionLambda.data(), x1 - x0);
+                // 3 (continued). history = (1 - lambda) current + lambda history, in place; the
+                // kernels filter the first C channels of the accumulated signal (C <= lambdaChannels).
+                // The filtered copy is stored from the same values: reading the just-stored floats
+                // back as one wider load stalled on store forwarding (a third of this stage's time).
+                float* filtered = row(filterIn);
+                for (int x = x0; x < x1; ++x) {
+                    const float l = lambda[std::size_t(x - x0)];
+                    const float* e = embedding.pixel(y, x);
+                    float* h = historyEmbedding.pixel(y, x);
+                    for (int c = 0; c < E; ++c) h[c] = (1.0f - l) * e[c] + l * h[c];
+                    const float* current = signal.pixel(y, x);
+                    float* accumulated = historySignal.pixel(y, x);
+                    float* f = filtered + std::size_t(x) * C;
+                    for (int c = 0; c < C; ++c) f[c] = accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
+                    for (int c = C; c < lambdaChannels; ++c) accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
+                    const float le = emissionLambda[std::size_t(x - x0)];
+                    for (int c = lambdaChannels; c < S; ++c) accumulated[c] = (1.0f - le) * current[c] + le * accumulated[c];
+                }
             }
         }
     }

@@ -37,13 +37,30 @@ Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, in
     upsampled_.emplace(torchWeights, bias, outChannels, upsampledChannels, inChannels - upsampledChannels, isa);
 }
 
+bool Conv2d::folds(const ConvSource* sources, int sourceCount) const {
+    return upsampled_ && sourceCount == 2 && sources[0].upsampled && !sources[1].upsampled &&
+           sources[0].channels == upsampled_->coarseChannels();
+}
+
 void Conv2d::row(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
                  Activation activation, float* outRow) const {
-    if (upsampled_ && sourceCount == 2 && sources[0].upsampled && !sources[1].upsampled &&
-        sources[0].channels == upsampled_->coarseChannels())
+    if (folds(sources, sourceCount))
         upsampled_->row(packed_, sources[0], sources[1], height, width, y, x0, x1, activation, outRow);
     else
         convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, outRow);
+}
+
+void Conv2d::rowPair(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
+                     Activation activation, float* row0, float* row1) const {
+    float* const rows[2] = {row0, row1};
+    if (folds(sources, sourceCount)) {
+        upsampled_->rowPair(packed_, sources[0], sources[1], height, width, y0 / 2, x0, x1, activation, rows);
+    } else if (winograd_) {
+        winograd_->strip(sources, sourceCount, height, width, y0 / 2, x0, x1, activation, false, rows);
+    } else {
+        convolveRow(packed_, sources, sourceCount, height, width, y0, x0, x1, activation, row0);
+        if (row1) convolveRow(packed_, sources, sourceCount, height, width, y0 + 1, x0, x1, activation, row1);
+    }
 }
 
 void Conv2d::apply(const FeatureMap& input, Activation activation, FeatureMap& output) const {
@@ -87,8 +104,8 @@ void Conv2d::applyUpsampled(const FeatureMap& coarse, const FeatureMap& skip, Ac
     run(sources + offset, count, skip.height(), skip.width(), activation, output);
 }
 
-void Conv2d::applyRow(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
-                      Activation activation, float* outRow) const {
+void Conv2d::checkRowInputs(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0,
+                            int x1) const {
     int channels = 0;
     for (int s = 0; s < sourceCount; ++s) channels += sources[s].channels;
     if (channels != inChannels())
@@ -98,7 +115,21 @@ void Conv2d::applyRow(const ConvSource* sources, int sourceCount, int height, in
         throw Error("Conv2d: row " + std::to_string(y) + ", columns " + std::to_string(x0) + ".." +
                     std::to_string(x1) + " are outside a " + std::to_string(height) + "x" + std::to_string(width) +
                     " image");
+}
+
+void Conv2d::applyRow(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
+                      Activation activation, float* outRow) const {
+    checkRowInputs(sources, sourceCount, height, width, y, x0, x1);
     row(sources, sourceCount, height, width, y, x0, x1, activation, outRow);
+}
+
+void Conv2d::applyRowPair(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
+                          Activation activation, float* row0, float* row1) const {
+    checkRowInputs(sources, sourceCount, height, width, y0, x0, x1);
+    if (y0 % 2 != 0 || (row1 == nullptr) != (y0 + 1 == height))
+        throw Error("Conv2d: a row pair starts at an even row and has a second row where the image does (row " +
+                    std::to_string(y0) + " of " + std::to_string(height) + ")");
+    rowPair(sources, sourceCount, height, width, y0, x0, x1, activation, row0, row1);
 }
 
 void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
@@ -106,20 +137,28 @@ void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int wid
     output.resize(height, width, outChannels());
     if (output.empty()) return;
     const double fmaCount = double(height) * width * outChannels() * inChannels() * size() * size();
-    if (winograd_) {
-        winograd_->apply(sources, sourceCount, height, width, activation, output, fmaCount >= kParallelMinFma);
+    const bool parallel = fmaCount >= kParallelMinFma;
+    if (winograd_ && !folds(sources, sourceCount)) {
+        winograd_->apply(sources, sourceCount, height, width, activation, output, parallel);
         return;
     }
+    // Row pairs where a Winograd form runs (the folded layer's skip part), else single rows.
+    const int step = folds(sources, sourceCount) ? 2 : 1;
+    const int strips = (height + step - 1) / step;
     const int tiles = (width + kConvTileWidth - 1) / kConvTileWidth;
-    const long long tasks = (long long)height * tiles;
+    const long long tasks = (long long)strips * tiles;
     // Each task owns whole output pixels, so the split cannot change any value; dynamic
     // scheduling only balances load when another process competes for the cores.
-#pragma omp parallel for schedule(dynamic) if (fmaCount >= kParallelMinFma)
+#pragma omp parallel for schedule(dynamic) if (parallel)
     for (long long task = 0; task < tasks; ++task) {
-        const int y = int(task / tiles);
+        const int y = int(task / tiles) * step;
         const int x0 = int(task % tiles) * kConvTileWidth;
         const int x1 = std::min(width, x0 + kConvTileWidth);
-        row(sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0));
+        if (step == 2)
+            rowPair(sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0),
+                    y + 1 < height ? output.pixel(y + 1, 0) : nullptr);
+        else
+            row(sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0));
     }
 }
 

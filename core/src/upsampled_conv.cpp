@@ -39,14 +39,15 @@ UpsampledConv::UpsampledConv(const float* torchWeights, const float* bias, int o
             for (int k = 0; k < 9; ++k)
                 skipWeights[(std::size_t(o) * skipChannels + c) * 9 + k] = weight(o, coarseChannels + c, k / 3, k % 3);
     skip_ = PackedConv(skipWeights.data(), nullptr, outChannels, skipChannels, 3, isa);
+    skipWinograd_ = WinogradConv(skipWeights.data(), nullptr, outChannels, skipChannels, isa);
 }
 
-void UpsampledConv::row(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height,
-                        int width, int y, int x0, int x1, Activation activation, float* outRow) const {
+void UpsampledConv::coarseRow(const ConvSource& coarse, int height, int width, int y, int x0, int x1,
+                              float* outRow) const {
     const int out = skip_.outChannels();
     const int py = y % 2;
-    // The coarse part, one column parity at a time: output columns 2j + px are coarse columns j
-    // of a 2x2 convolution, written every other pixel.
+    // One column parity at a time: output columns 2j + px are coarse columns j of a 2x2
+    // convolution, written every other pixel.
     const ConvSource coarseLevel{coarse.data, coarse.channels};
     for (int px = 0; px < 2; ++px) {
         const int j0 = (x0 - px + 1) / 2, j1 = (x1 - px + 1) / 2;  // 2j + px in [x0, x1)
@@ -55,15 +56,36 @@ void UpsampledConv::row(const PackedConv& full, const ConvSource& coarse, const 
         convolveRowPlaced(phase_[py][px], &coarseLevel, 1, (height + 1) / 2, (width + 1) / 2, y / 2, j0, j1,
                           Activation::None, strided, outRow + std::size_t(px) * out);
     }
-    const ConvPlacement added{-1, -1, out, true};
-    convolveRowPlaced(skip_, &skip, 1, height, width, y, x0, x1, activation, added, outRow);
+}
+
+void UpsampledConv::unfoldedEdges(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip,
+                                  int height, int width, int y, int x0, int x1, Activation activation,
+                                  float* outRow) const {
     // An odd height's last row (an odd width's last column) has no full-resolution row below it,
-    // but its folded tap +1 reads the coarse row it lies on: those pixels are computed unfolded.
+    // but its folded tap +1 reads the coarse row it lies on.
     const ConvSource both[2] = {coarse, skip};
     if (height % 2 == 1 && y == height - 1)
         convolveRow(full, both, 2, height, width, y, x0, x1, activation, outRow);
     else if (width % 2 == 1 && x1 == width)
         convolveRow(full, both, 2, height, width, y, width - 1, width, activation, outRow);
+}
+
+void UpsampledConv::row(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height,
+                        int width, int y, int x0, int x1, Activation activation, float* outRow) const {
+    coarseRow(coarse, height, width, y, x0, x1, outRow);
+    const ConvPlacement added{-1, -1, skip_.outChannels(), true};
+    convolveRowPlaced(skip_, &skip, 1, height, width, y, x0, x1, activation, added, outRow);
+    unfoldedEdges(full, coarse, skip, height, width, y, x0, x1, activation, outRow);
+}
+
+void UpsampledConv::rowPair(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height,
+                            int width, int tileY, int x0, int x1, Activation activation,
+                            float* const (&rows)[2]) const {
+    for (int r = 0; r < 2; ++r)
+        if (rows[r]) coarseRow(coarse, height, width, 2 * tileY + r, x0, x1, rows[r]);
+    skipWinograd_.strip(&skip, 1, height, width, tileY, x0, x1, activation, true, rows);
+    for (int r = 0; r < 2; ++r)
+        if (rows[r]) unfoldedEdges(full, coarse, skip, height, width, 2 * tileY + r, x0, x1, activation, rows[r]);
 }
 
 }  // namespace affinity

@@ -4,9 +4,11 @@
 // upsampled map fall on only 2x2 coarse pixels (which ones depends on the pixel's row and
 // column parity), so per parity the coarse part is a 2x2 convolution over the coarse level with
 // the folded weights: 4 taps instead of 9 over those channels. The skip part stays an ordinary
-// 3x3 convolution added onto it. The same function as Conv2d's unfolded path up to float
-// rounding (the folded weights are sums), not bit for bit.
+// 3x3 convolution added onto it, directly (row) or, two rows at a time, in the Winograd form of
+// winograd_conv.h (rowPair). The same function as Conv2d's unfolded path up to float rounding
+// (the folded weights are sums), not bit for bit.
 #include "conv_kernel.h"
+#include "winograd_conv.h"
 
 namespace affinity {
 
@@ -24,10 +26,22 @@ public:
     // same convolution packed whole, for the pixels of an odd last row or column (below).
     void row(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width, int y,
              int x0, int x1, Activation activation, float* outRow) const;
+    // Rows 2 * tileY and 2 * tileY + 1 (rows[1] null where the image has no such row) at once,
+    // the skip part in the Winograd form: equal to row() up to float rounding.
+    void rowPair(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width,
+                 int tileY, int x0, int x1, Activation activation, float* const (&rows)[2]) const;
 
 private:
+    // The coarse part of output row y (with the bias, before the activation).
+    void coarseRow(const ConvSource& coarse, int height, int width, int y, int x0, int x1, float* outRow) const;
+    // Redoes, unfolded, the pixels of row y that the folded form gets wrong: all of an odd
+    // height's last row, an odd width's last column.
+    void unfoldedEdges(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width,
+                       int y, int x0, int x1, Activation activation, float* outRow) const;
+
     PackedConv phase_[2][2];  // [row parity][column parity]: 2x2 over the coarse level, with the bias
     PackedConv skip_;         // 3x3 over the skip input, no bias
+    WinogradConv skipWinograd_;  // the same in the Winograd form
 };
 
 }  // namespace affinity

@@ -10,11 +10,11 @@
 namespace affinity {
 namespace {
 
-// Tiles (2x2 output pixels) per unit of work: 96 output columns. Their transformed input
-// (16 x 48 x inChannels floats, 192 KiB at 64 channels) stays in L2 while each position's 1x1
-// convolution streams through it; 48 is a whole number of the kernel's register blocks (12, 8
-// and 6 pixels).
-constexpr int kTilesPerTask = 48;
+// Tiles (2x2 output pixels) transformed at a time: 48 output columns. Their transformed input
+// (16 x 24 x inChannels floats, 96 KiB at 64 channels) stays in L2 while each position's 1x1
+// convolution streams through it; 24 is a whole number of the kernel's register blocks (12, 8
+// and 6 pixels). 12, 24 and 48 were within this VM's noise of each other in bench_conv.
+constexpr int kTilesPerTask = 24;
 
 // Lanes [0, count) of p, count in 1..8 (the rest read as 0).
 Float8 loadLanes(const float* p, int count) { return count == 8 ? Float8::loadu(p) : Float8::loadPartial(p, count); }
@@ -55,7 +55,8 @@ void transformPatch(const float* const (&rows)[4], std::size_t pixelStride, int 
 
 // Y = A^T M A + bias for the `channels` output channels of one tile, A^T = [1 1 1 0; 0 1 -1 -1];
 // position (i, j) of M is at m + (i * 4 + j) * plane. Output pixel (r, q) goes to out[r][q].
-void transformOutput(const float* m, std::size_t plane, const float* bias, int channels, bool leaky,
+// With `add`, onto the values already at out[r][q] (before the activation).
+void transformOutput(const float* m, std::size_t plane, const float* bias, int channels, bool leaky, bool add,
                      float* const (&out)[2][2]) {
     const Float8 slope = Float8::broadcast(0.01f);  // leaky ReLU
     for (int o = 0; o < channels; o += 8) {
@@ -72,6 +73,7 @@ void transformOutput(const float* m, std::size_t plane, const float* bias, int c
         for (int r = 0; r < 2; ++r) {
             Float8 y[2] = {s[r][0] + s[r][1] + s[r][2] + b, s[r][1] - s[r][2] - s[r][3] + b};
             for (int q = 0; q < 2; ++q) {
+                if (add) y[q] = loadLanes(out[r][q] + o, lanes) + y[q];
                 if (leaky) y[q] = max(y[q], y[q] * slope);
                 storeLanes(y[q], out[r][q] + o, lanes);
             }
@@ -136,48 +138,60 @@ WinogradConv::WinogradConv(const float* torchWeights, const float* bias, int out
                                                                             outChannels, inChannels, 1, isa);
 }
 
+void WinogradConv::strip(const ConvSource* sources, int sourceCount, int height, int width, int tileY, int x0,
+                         int x1, Activation activation, bool add, float* const (&rows)[2]) const {
+    // Per thread, reused from call to call: the transformed input and products of kTilesPerTask
+    // tiles, a border tile's patch, and where the outputs past the image go.
+    thread_local AlignedVector<float> v, m;
+    thread_local std::vector<float> patch, discard;
+    const std::size_t inPlane = std::size_t(kTilesPerTask) * in_, outPlane = std::size_t(kTilesPerTask) * out_;
+    if (v.size() < 16 * inPlane) v.resize(16 * inPlane);
+    if (m.size() < 16 * outPlane) m.resize(16 * outPlane);
+    if (patch.size() < 16 * std::size_t(in_)) patch.resize(16 * std::size_t(in_));
+    if (discard.size() < std::size_t(out_)) discard.resize(std::size_t(out_), 0.0f);
+    const bool leaky = activation == Activation::LeakyRelu;
+    const int lastTile = (x1 + 1) / 2;  // one past
+    for (int firstTile = x0 / 2; firstTile < lastTile; firstTile += kTilesPerTask) {
+        const int tiles = std::min(kTilesPerTask, lastTile - firstTile);
+        for (int t = 0; t < tiles; ++t) {
+            float* dst = v.data() + std::size_t(t) * in_;
+            for (int s = 0; s < sourceCount; ++s) {
+                const float* patchRow[4];
+                const std::size_t stride =
+                    patchRows(sources[s], height, width, tileY, firstTile + t, patch.data(), patchRow);
+                transformPatch(patchRow, stride, sources[s].channels, inPlane, dst);
+                dst += sources[s].channels;
+            }
+        }
+        for (int p = 0; p < 16; ++p) {
+            const ConvSource position{v.data() + std::size_t(p) * inPlane, in_};
+            convolveRow(positions_[std::size_t(p)], &position, 1, 1, tiles, 0, 0, tiles, Activation::None,
+                        m.data() + std::size_t(p) * outPlane);
+        }
+        for (int t = 0; t < tiles; ++t) {
+            const int x = 2 * (firstTile + t);
+            float* out[2][2];
+            for (int r = 0; r < 2; ++r)
+                for (int q = 0; q < 2; ++q)
+                    out[r][q] = rows[r] && x + q >= x0 && x + q < x1 ? rows[r] + std::size_t(x + q) * out_ : discard.data();
+            transformOutput(m.data() + std::size_t(t) * out_, outPlane, bias_.data(), out_, leaky, add, out);
+        }
+    }
+}
+
 void WinogradConv::apply(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
                          FeatureMap& output, bool parallel) const {
     const int tileRows = (height + 1) / 2, tileColumns = (width + 1) / 2;
     const int chunks = (tileColumns + kTilesPerTask - 1) / kTilesPerTask;
     const long long tasks = (long long)tileRows * chunks;
-    const bool leaky = activation == Activation::LeakyRelu;
-#pragma omp parallel if (parallel)
-    {
-        const std::size_t inPlane = std::size_t(kTilesPerTask) * in_, outPlane = std::size_t(kTilesPerTask) * out_;
-        AlignedVector<float> v(16 * inPlane), m(16 * outPlane);
-        // A border tile's patch, and where the outputs past an odd last row or column go.
-        std::vector<float> patch(16 * std::size_t(in_));
-        std::vector<float> discard(static_cast<std::size_t>(out_));
-#pragma omp for schedule(dynamic)
-        for (long long task = 0; task < tasks; ++task) {
-            const int tileY = int(task / chunks);
-            const int firstTile = int(task % chunks) * kTilesPerTask;
-            const int tiles = std::min(kTilesPerTask, tileColumns - firstTile);
-            for (int t = 0; t < tiles; ++t) {
-                float* dst = v.data() + std::size_t(t) * in_;
-                for (int s = 0; s < sourceCount; ++s) {
-                    const float* rows[4];
-                    const std::size_t stride =
-                        patchRows(sources[s], height, width, tileY, firstTile + t, patch.data(), rows);
-                    transformPatch(rows, stride, sources[s].channels, inPlane, dst);
-                    dst += sources[s].channels;
-                }
-            }
-            for (int p = 0; p < 16; ++p) {
-                const ConvSource position{v.data() + std::size_t(p) * inPlane, in_};
-                convolveRow(positions_[std::size_t(p)], &position, 1, 1, tiles, 0, 0, tiles, Activation::None,
-                            m.data() + std::size_t(p) * outPlane);
-            }
-            for (int t = 0; t < tiles; ++t) {
-                const int y = 2 * tileY, x = 2 * (firstTile + t);
-                float* out[2][2];
-                for (int r = 0; r < 2; ++r)
-                    for (int q = 0; q < 2; ++q)
-                        out[r][q] = y + r < height && x + q < width ? output.pixel(y + r, x + q) : discard.data();
-                transformOutput(m.data() + std::size_t(t) * out_, outPlane, bias_.data(), out_, leaky, out);
-            }
-        }
+#pragma omp parallel for schedule(dynamic) if (parallel)
+    for (long long task = 0; task < tasks; ++task) {
+        const int tileY = int(task / chunks);
+        const int x0 = int(task % chunks) * 2 * kTilesPerTask;
+        const int x1 = std::min(width, x0 + 2 * kTilesPerTask);
+        float* const rows[2] = {output.pixel(2 * tileY, 0),
+                                2 * tileY + 1 < height ? output.pixel(2 * tileY + 1, 0) : nullptr};
+        strip(sources, sourceCount, height, width, tileY, x0, x1, activation, false, rows);
     }
 }
 

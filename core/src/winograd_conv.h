@@ -18,6 +18,7 @@ namespace affinity {
 
 class WinogradConv {
 public:
+    WinogradConv() = default;
     // torchWeights [outChannels][inChannels][3][3], bias [outChannels] or null (zero).
     WinogradConv(const float* torchWeights, const float* bias, int outChannels, int inChannels, ConvIsa isa);
 
@@ -30,6 +31,12 @@ public:
     // computed by one thread in a fixed order, so the thread count changes no value.
     void apply(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
                FeatureMap& output, bool parallel) const;
+    // Output rows 2 * tileY and 2 * tileY + 1, columns [x0, x1), on the calling thread,
+    // into rows[0] and rows[1] (column 0 of NHWC rows of outChannels; rows[1] null where the
+    // image has no such row). With `add`, onto the values there: act(there + conv + bias).
+    // Each pixel's value does not depend on the column range it was computed in.
+    void strip(const ConvSource* sources, int sourceCount, int height, int width, int tileY, int x0, int x1,
+               Activation activation, bool add, float* const (&rows)[2]) const;
 
 private:
     int out_ = 0, in_ = 0;

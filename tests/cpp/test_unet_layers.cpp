@@ -305,38 +305,55 @@ TEST(Conv2d, FoldedFormRejectsAnUnfoldableLayer) {
     EXPECT_EQ(countMismatches(output, w, input, Activation::None), 0);
 }
 
-void checkRowsEqualTheWholeImage(const Conv2d& conv, const FeatureMap& coarse, const FeatureMap& skip);
+void checkRowsEqualTheWholeImage(const Conv2d& conv, const ConvWeights& w, const FeatureMap& coarse,
+                                 const FeatureMap& skip);
 
 TEST(Conv2d, RowsEqualTheWholeImage) {
     std::mt19937 rng(14);
     const FeatureMap coarse = randomMap(16, 66, 7, rng);
     const FeatureMap skip = randomMap(31, 131, 5, rng);
     const ConvWeights w = randomConv(19, 12, 3, rng);
-    // Unfolded and folded: the folded form splits column parities at the odd range starts.
-    for (const int upsampledChannels : {0, 7}) {
-        SCOPED_TRACE("upsampled channels " + std::to_string(upsampledChannels));
+    // Unfolded, folded (its skip part in the Winograd form for row pairs) and Winograd: the
+    // folded form splits column parities at the odd range starts.
+    for (const auto& [upsampledChannels, form] :
+         {std::pair{0, ConvForm::Direct}, std::pair{7, ConvForm::Direct}, std::pair{0, ConvForm::Winograd}}) {
+        SCOPED_TRACE("upsampled channels " + std::to_string(upsampledChannels) +
+                     (form == ConvForm::Winograd ? ", Winograd" : ""));
         checkRowsEqualTheWholeImage(
-            Conv2d(w.weight.data(), w.bias.data(), w.out, w.in, w.size, defaultConvIsa(), upsampledChannels), coarse,
-            skip);
+            Conv2d(w.weight.data(), w.bias.data(), w.out, w.in, w.size, defaultConvIsa(), upsampledChannels, form), w,
+            coarse, skip);
     }
 }
 
-void checkRowsEqualTheWholeImage(const Conv2d& conv, const FeatureMap& coarse, const FeatureMap& skip) {
+// Row pairs give the whole image's values bit for bit; single rows (always the direct form) the
+// same function within the reference's tolerance.
+void checkRowsEqualTheWholeImage(const Conv2d& conv, const ConvWeights& w, const FeatureMap& coarse,
+                                 const FeatureMap& skip) {
     FeatureMap whole;
     conv.applyUpsampled(coarse, skip, Activation::LeakyRelu, whole);
     const ConvSource sources[2] = {{coarse.data(), coarse.channels(), true}, {skip.data(), skip.channels()}};
-    FeatureMap rows(31, 131, 19);
+    FeatureMap pairs(31, 131, 19), rows(31, 131, 19);
+    pairs.fill(-1.0f);
     rows.fill(-1.0f);
-    // Ragged column ranges, each row filled piece by piece.
-    for (int y = 0; y < 31; ++y)
-        for (const auto& range : {std::pair{0, 3}, std::pair{3, 70}, std::pair{70, 131}})
-            conv.applyRow(sources, 2, 31, 131, y, range.first, range.second, Activation::LeakyRelu,
-                          rows.pixel(y, 0));
-    EXPECT_TRUE(bitwiseEqual(rows, whole));
-    float out[131 * 19];
+    // Ragged column ranges (odd starts included), each row filled piece by piece.
+    for (const auto& range : {std::pair{0, 3}, std::pair{3, 70}, std::pair{70, 131}}) {
+        for (int y = 0; y < 31; y += 2)
+            conv.applyRowPair(sources, 2, 31, 131, y, range.first, range.second, Activation::LeakyRelu,
+                              pairs.pixel(y, 0), y + 1 < 31 ? pairs.pixel(y + 1, 0) : nullptr);
+        for (int y = 0; y < 31; ++y)
+            conv.applyRow(sources, 2, 31, 131, y, range.first, range.second, Activation::LeakyRelu, rows.pixel(y, 0));
+    }
+    EXPECT_TRUE(bitwiseEqual(pairs, whole));
+    FeatureMap upsampled;
+    upsampleNearest(coarse, 31, 131, upsampled);
+    EXPECT_EQ(countMismatches(rows, w, concat(upsampled, skip), Activation::LeakyRelu), 0);
+    float out[131 * 19], out2[131 * 19];
     EXPECT_THROW(conv.applyRow(sources, 1, 31, 131, 0, 0, 131, Activation::None, out), Error);
     EXPECT_THROW(conv.applyRow(sources, 2, 31, 131, 31, 0, 131, Activation::None, out), Error);
     EXPECT_THROW(conv.applyRow(sources, 2, 31, 131, 0, 0, 132, Activation::None, out), Error);
+    EXPECT_THROW(conv.applyRowPair(sources, 2, 31, 131, 1, 0, 131, Activation::None, out, out2), Error);
+    EXPECT_THROW(conv.applyRowPair(sources, 2, 31, 131, 30, 0, 131, Activation::None, out, out2), Error);
+    EXPECT_THROW(conv.applyRowPair(sources, 2, 31, 131, 0, 0, 131, Activation::None, out, nullptr), Error);
 }
 
 TEST(Conv2d, RejectsAnUpsampledInputOfTheWrongSize) {
