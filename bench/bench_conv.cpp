@@ -1,6 +1,7 @@
 // How close the U-Net's hot loop gets to the machine: (a) the FP32 peak measured with an
 // FMA microbenchmark (AVX2 and, where the CPU has it, AVX-512: the widest is the peak), (b)
-// our 3x3 convolution at 1080p (its AVX2 and AVX-512 kernels) as GFLOP/s and fraction of that peak,
+// our 3x3 convolution at 1080p (its AVX2 and AVX-512 kernels, direct and in the Winograd form) as
+// GFLOP/s and fraction of that peak,
 // (c) the same convolutions through oneDNN as a yardstick, (d) the embedding MLP at 1080p.
 // Run on a quiet machine with --benchmark_repetitions and compare numbers of the same run.
 #include <benchmark/benchmark.h>
