@@ -325,25 +325,27 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
     const int lambdaChannels = net.emissionLambda ? S - 3 : S;
     if (C > lambdaChannels) throw Error("denoise: the filtered channels must accumulate with lambda");
     const int tiles = (columns + kConvTileWidth - 1) / kConvTileWidth;
-    // The convolution runs two rows at a time (its Winograd form's tiles); a pair reaching past
-    // the band is recomputed by the neighbouring band, but only the band's rows go on.
-    const int firstPair = begin / 2, endPair = (end + 1) / 2;
-    const long long tasks = (long long)(endPair - firstPair) * tiles;
+    // The convolution runs kWinogradRows rows at a time (its Winograd form's tiles); a group
+    // reaching past the band is recomputed by the neighbouring band, but only the band's rows go on.
+    const int firstGroup = begin / kWinogradRows, endGroup = (end + kWinogradRows - 1) / kWinogradRows;
+    const long long tasks = (long long)(endGroup - firstGroup) * tiles;
 #pragma omp parallel
     {
-        std::vector<float> decoded[2];
+        std::vector<float> decoded[kWinogradRows];
         for (std::vector<float>& row : decoded) row.resize(std::size_t(columns) * std::size_t(last.outChannels()));
         std::vector<float> params(std::size_t(columns) * std::size_t(head.outChannels()));
         // A tile's lambda and emission lambda: only its accumulation reads them.
         std::vector<float> lambda(kConvTileWidth), emissionLambda(kConvTileWidth);
 #pragma omp for schedule(dynamic)
         for (long long task = 0; task < tasks; ++task) {
-            const int y0 = 2 * (firstPair + int(task / tiles));
+            const int y0 = kWinogradRows * (firstGroup + int(task / tiles));
             const int x0 = int(task % tiles) * kConvTileWidth;
             const int x1 = std::min(columns, x0 + kConvTileWidth);
-            last.applyRowPair(sources.data(), int(sources.size()), rows, columns, y0, x0, x1, Activation::LeakyRelu,
-                              decoded[0].data(), y0 + 1 < rows ? decoded[1].data() : nullptr);
-            for (int y = std::max(y0, begin); y < std::min(y0 + 2, end); ++y) {
+            float* decodedRows[kWinogradRows];
+            for (int r = 0; r < kWinogradRows; ++r) decodedRows[r] = y0 + r < rows ? decoded[r].data() : nullptr;
+            last.applyRowGroup(sources.data(), int(sources.size()), rows, columns, y0, x0, x1, Activation::LeakyRelu,
+                               decodedRows);
+            for (int y = std::max(y0, begin); y < std::min(y0 + kWinogradRows, end); ++y) {
                 const ConvSource decodedRow{decoded[y - y0].data(), last.outChannels()};
                 head.applyRow(&decodedRow, 1, 1, columns, 0, x0, x1, Activation::None, params.data());
                 // Scatter the head's channels into the maps, then the sigmoids on each single-channel

@@ -50,16 +50,16 @@ void Conv2d::row(const ConvSource* sources, int sourceCount, int height, int wid
         convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, outRow);
 }
 
-void Conv2d::rowPair(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
-                     Activation activation, float* row0, float* row1) const {
-    float* const rows[2] = {row0, row1};
+void Conv2d::rowGroup(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
+                      Activation activation, float* const* rows) const {
+    const int tileY = y0 / kWinogradRows;
     if (folds(sources, sourceCount)) {
-        upsampled_->rowPair(packed_, sources[0], sources[1], height, width, y0 / 2, x0, x1, activation, rows);
+        upsampled_->rowGroup(packed_, sources[0], sources[1], height, width, tileY, x0, x1, activation, rows);
     } else if (winograd_) {
-        winograd_->strip(sources, sourceCount, height, width, y0 / 2, x0, x1, activation, false, rows);
+        winograd_->strip(sources, sourceCount, height, width, tileY, x0, x1, activation, false, rows);
     } else {
-        convolveRow(packed_, sources, sourceCount, height, width, y0, x0, x1, activation, row0);
-        if (row1) convolveRow(packed_, sources, sourceCount, height, width, y0 + 1, x0, x1, activation, row1);
+        for (int r = 0; r < kWinogradRows; ++r)
+            if (rows[r]) convolveRow(packed_, sources, sourceCount, height, width, y0 + r, x0, x1, activation, rows[r]);
     }
 }
 
@@ -123,13 +123,16 @@ void Conv2d::applyRow(const ConvSource* sources, int sourceCount, int height, in
     row(sources, sourceCount, height, width, y, x0, x1, activation, outRow);
 }
 
-void Conv2d::applyRowPair(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
-                          Activation activation, float* row0, float* row1) const {
+void Conv2d::applyRowGroup(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0,
+                           int x1, Activation activation, float* const* rows) const {
     checkRowInputs(sources, sourceCount, height, width, y0, x0, x1);
-    if (y0 % 2 != 0 || (row1 == nullptr) != (y0 + 1 == height))
-        throw Error("Conv2d: a row pair starts at an even row and has a second row where the image does (row " +
-                    std::to_string(y0) + " of " + std::to_string(height) + ")");
-    rowPair(sources, sourceCount, height, width, y0, x0, x1, activation, row0, row1);
+    bool nullsPastTheImage = true;
+    for (int r = 0; r < kWinogradRows; ++r) nullsPastTheImage &= (rows[r] == nullptr) == (y0 + r >= height);
+    if (y0 % kWinogradRows != 0 || !nullsPastTheImage)
+        throw Error("Conv2d: a group of rows starts at a multiple of " + std::to_string(kWinogradRows) +
+                    " and has exactly the image's rows (row " + std::to_string(y0) + " of " + std::to_string(height) +
+                    ")");
+    rowGroup(sources, sourceCount, height, width, y0, x0, x1, activation, rows);
 }
 
 void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
@@ -142,8 +145,8 @@ void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int wid
         winograd_->apply(sources, sourceCount, height, width, activation, output, parallel);
         return;
     }
-    // Row pairs where a Winograd form runs (the folded layer's skip part), else single rows.
-    const int step = folds(sources, sourceCount) ? 2 : 1;
+    // Row groups where a Winograd form runs (the folded layer's skip part), else single rows.
+    const int step = folds(sources, sourceCount) ? kWinogradRows : 1;
     const int strips = (height + step - 1) / step;
     const int tiles = (width + kConvTileWidth - 1) / kConvTileWidth;
     const long long tasks = (long long)strips * tiles;
@@ -154,11 +157,13 @@ void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int wid
         const int y = int(task / tiles) * step;
         const int x0 = int(task % tiles) * kConvTileWidth;
         const int x1 = std::min(width, x0 + kConvTileWidth);
-        if (step == 2)
-            rowPair(sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0),
-                    y + 1 < height ? output.pixel(y + 1, 0) : nullptr);
-        else
+        if (step == kWinogradRows) {
+            float* rows[kWinogradRows];
+            for (int r = 0; r < kWinogradRows; ++r) rows[r] = y + r < height ? output.pixel(y + r, 0) : nullptr;
+            rowGroup(sources, sourceCount, height, width, y, x0, x1, activation, rows);
+        } else {
             row(sources, sourceCount, height, width, y, x0, x1, activation, output.pixel(y, 0));
+        }
     }
 }
 

@@ -16,9 +16,9 @@ namespace affinity {
 // weights stay in L1. Row-fused callers of Conv2d::applyRow use it too.
 inline constexpr int kConvTileWidth = 128;
 
-// How a 3x3 layer computes whole images (apply, applyUpsampled) and row pairs: directly, or in
-// the Winograd form of winograd_conv.h (16 multiply-adds per 2x2 pixels and channel pair instead
-// of 36; equal up to float rounding). applyRow always runs the direct form. A layer with a folded
+// How a 3x3 layer computes whole images (apply, applyUpsampled) and row groups: directly, or in
+// the Winograd form of winograd_conv.h (36 multiply-adds per 4x4 pixels and channel pair instead
+// of 144; equal up to float rounding). applyRow always runs the direct form. A layer with a folded
 // upsampled input runs its skip part in the Winograd form whatever `form` says.
 enum class ConvForm { Direct, Winograd };
 
@@ -59,11 +59,12 @@ public:
     // the channel counts or the range are wrong.
     void applyRow(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
                   Activation activation, float* outRow) const;
-    // Rows y0 and y0 + 1 (y0 even; row1 null where y0 + 1 == height), columns [x0, x1), the
-    // same way: into row0 and row1 (column 0 of NHWC rows). Two rows are what the Winograd form
-    // computes at once; the results equal apply()'s bit for bit in every form.
-    void applyRowPair(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
-                      Activation activation, float* row0, float* row1) const;
+    // Rows y0 + r, r < kWinogradRows (y0 a multiple of it), columns [x0, x1), the same way:
+    // into rows[r] (column 0 of an NHWC row), null exactly for the rows past the image. A group
+    // is what the Winograd form computes at once; the results equal apply()'s bit for bit in
+    // every form.
+    void applyRowGroup(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
+                       Activation activation, float* const* rows) const;
 
 private:
     void run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
@@ -72,9 +73,9 @@ private:
     bool folds(const ConvSource* sources, int sourceCount) const;
     void checkRowInputs(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0,
                         int x1) const;
-    // Two rows (row1 null past the image), through the folded or Winograd form where they apply.
-    void rowPair(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
-                 Activation activation, float* row0, float* row1) const;
+    // A group of rows (null past the image), through the folded or Winograd form where they apply.
+    void rowGroup(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
+                  Activation activation, float* const* rows) const;
     // One row of the output, through the folded form where it applies.
     void row(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
              Activation activation, float* outRow) const;

@@ -78,14 +78,14 @@ void UpsampledConv::row(const PackedConv& full, const ConvSource& coarse, const 
     unfoldedEdges(full, coarse, skip, height, width, y, x0, x1, activation, outRow);
 }
 
-void UpsampledConv::rowPair(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height,
-                            int width, int tileY, int x0, int x1, Activation activation,
-                            float* const (&rows)[2]) const {
-    for (int r = 0; r < 2; ++r)
-        if (rows[r]) coarseRow(coarse, height, width, 2 * tileY + r, x0, x1, rows[r]);
+void UpsampledConv::rowGroup(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height,
+                             int width, int tileY, int x0, int x1, Activation activation, float* const* rows) const {
+    const int y0 = kWinogradRows * tileY;
+    for (int r = 0; r < kWinogradRows; ++r)
+        if (rows[r]) coarseRow(coarse, height, width, y0 + r, x0, x1, rows[r]);
     skipWinograd_.strip(&skip, 1, height, width, tileY, x0, x1, activation, true, rows);
-    for (int r = 0; r < 2; ++r)
-        if (rows[r]) unfoldedEdges(full, coarse, skip, height, width, 2 * tileY + r, x0, x1, activation, rows[r]);
+    for (int r = 0; r < kWinogradRows; ++r)
+        if (rows[r]) unfoldedEdges(full, coarse, skip, height, width, y0 + r, x0, x1, activation, rows[r]);
 }
 
 }  // namespace affinity

@@ -4,8 +4,8 @@
 // upsampled map fall on only 2x2 coarse pixels (which ones depends on the pixel's row and
 // column parity), so per parity the coarse part is a 2x2 convolution over the coarse level with
 // the folded weights: 4 taps instead of 9 over those channels. The skip part stays an ordinary
-// 3x3 convolution added onto it, directly (row) or, two rows at a time, in the Winograd form of
-// winograd_conv.h (rowPair). The same function as Conv2d's unfolded path up to float rounding
+// 3x3 convolution added onto it, directly (row) or, kWinogradRows rows at a time, in the
+// Winograd form of winograd_conv.h (rowGroup). The same function as Conv2d's unfolded path up to float rounding
 // (the folded weights are sums), not bit for bit.
 #include "conv_kernel.h"
 #include "winograd_conv.h"
@@ -26,10 +26,10 @@ public:
     // same convolution packed whole, for the pixels of an odd last row or column (below).
     void row(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width, int y,
              int x0, int x1, Activation activation, float* outRow) const;
-    // Rows 2 * tileY and 2 * tileY + 1 (rows[1] null where the image has no such row) at once,
-    // the skip part in the Winograd form: equal to row() up to float rounding.
-    void rowPair(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width,
-                 int tileY, int x0, int x1, Activation activation, float* const (&rows)[2]) const;
+    // Rows kWinogradRows * tileY + r into rows[r], r < kWinogradRows (null past the image), at
+    // once, the skip part in the Winograd form: equal to row() up to float rounding.
+    void rowGroup(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width,
+                  int tileY, int x0, int x1, Activation activation, float* const* rows) const;
 
 private:
     // The coarse part of output row y (with the bias, before the activation).

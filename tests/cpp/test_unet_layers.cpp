@@ -313,7 +313,7 @@ TEST(Conv2d, RowsEqualTheWholeImage) {
     const FeatureMap coarse = randomMap(16, 66, 7, rng);
     const FeatureMap skip = randomMap(31, 131, 5, rng);
     const ConvWeights w = randomConv(19, 12, 3, rng);
-    // Unfolded, folded (its skip part in the Winograd form for row pairs) and Winograd: the
+    // Unfolded, folded (its skip part in the Winograd form) and Winograd: the
     // folded form splits column parities at the odd range starts.
     for (const auto& [upsampledChannels, form] :
          {std::pair{0, ConvForm::Direct}, std::pair{7, ConvForm::Direct}, std::pair{0, ConvForm::Winograd}}) {
@@ -325,35 +325,41 @@ TEST(Conv2d, RowsEqualTheWholeImage) {
     }
 }
 
-// Row pairs give the whole image's values bit for bit; single rows (always the direct form) the
+// Row groups give the whole image's values bit for bit; single rows (always the direct form) the
 // same function within the reference's tolerance.
 void checkRowsEqualTheWholeImage(const Conv2d& conv, const ConvWeights& w, const FeatureMap& coarse,
                                  const FeatureMap& skip) {
     FeatureMap whole;
     conv.applyUpsampled(coarse, skip, Activation::LeakyRelu, whole);
     const ConvSource sources[2] = {{coarse.data(), coarse.channels(), true}, {skip.data(), skip.channels()}};
-    FeatureMap pairs(31, 131, 19), rows(31, 131, 19);
-    pairs.fill(-1.0f);
+    FeatureMap groups(31, 131, 19), rows(31, 131, 19);
+    groups.fill(-1.0f);
     rows.fill(-1.0f);
     // Ragged column ranges (odd starts included), each row filled piece by piece.
     for (const auto& range : {std::pair{0, 3}, std::pair{3, 70}, std::pair{70, 131}}) {
-        for (int y = 0; y < 31; y += 2)
-            conv.applyRowPair(sources, 2, 31, 131, y, range.first, range.second, Activation::LeakyRelu,
-                              pairs.pixel(y, 0), y + 1 < 31 ? pairs.pixel(y + 1, 0) : nullptr);
+        for (int y = 0; y < 31; y += kWinogradRows) {
+            float* group[kWinogradRows];
+            for (int r = 0; r < kWinogradRows; ++r) group[r] = y + r < 31 ? groups.pixel(y + r, 0) : nullptr;
+            conv.applyRowGroup(sources, 2, 31, 131, y, range.first, range.second, Activation::LeakyRelu, group);
+        }
         for (int y = 0; y < 31; ++y)
             conv.applyRow(sources, 2, 31, 131, y, range.first, range.second, Activation::LeakyRelu, rows.pixel(y, 0));
     }
-    EXPECT_TRUE(bitwiseEqual(pairs, whole));
+    EXPECT_TRUE(bitwiseEqual(groups, whole));
     FeatureMap upsampled;
     upsampleNearest(coarse, 31, 131, upsampled);
     EXPECT_EQ(countMismatches(rows, w, concat(upsampled, skip), Activation::LeakyRelu), 0);
-    float out[131 * 19], out2[131 * 19];
-    EXPECT_THROW(conv.applyRow(sources, 1, 31, 131, 0, 0, 131, Activation::None, out), Error);
-    EXPECT_THROW(conv.applyRow(sources, 2, 31, 131, 31, 0, 131, Activation::None, out), Error);
-    EXPECT_THROW(conv.applyRow(sources, 2, 31, 131, 0, 0, 132, Activation::None, out), Error);
-    EXPECT_THROW(conv.applyRowPair(sources, 2, 31, 131, 1, 0, 131, Activation::None, out, out2), Error);
-    EXPECT_THROW(conv.applyRowPair(sources, 2, 31, 131, 30, 0, 131, Activation::None, out, out2), Error);
-    EXPECT_THROW(conv.applyRowPair(sources, 2, 31, 131, 0, 0, 131, Activation::None, out, nullptr), Error);
+    float out[kWinogradRows][131 * 19];
+    EXPECT_THROW(conv.applyRow(sources, 1, 31, 131, 0, 0, 131, Activation::None, out[0]), Error);
+    EXPECT_THROW(conv.applyRow(sources, 2, 31, 131, 31, 0, 131, Activation::None, out[0]), Error);
+    EXPECT_THROW(conv.applyRow(sources, 2, 31, 131, 0, 0, 132, Activation::None, out[0]), Error);
+    static_assert(kWinogradRows == 4, "the groups below are written out for 4 rows");
+    float* const full[kWinogradRows] = {out[0], out[1], out[2], out[3]};
+    float* const lastRowsOnly[kWinogradRows] = {out[0], out[1], out[2], nullptr};  // rows 28-30 of 31
+    EXPECT_THROW(conv.applyRowGroup(sources, 2, 31, 131, 2, 0, 131, Activation::None, full), Error);
+    EXPECT_THROW(conv.applyRowGroup(sources, 2, 31, 131, 28, 0, 131, Activation::None, full), Error);
+    EXPECT_THROW(conv.applyRowGroup(sources, 2, 31, 131, 0, 0, 131, Activation::None, lastRowsOnly), Error);
+    EXPECT_NO_THROW(conv.applyRowGroup(sources, 2, 31, 131, 28, 0, 131, Activation::None, lastRowsOnly));
 }
 
 TEST(Conv2d, RejectsAnUpsampledInputOfTheWrongSize) {
