@@ -21,9 +21,11 @@ UpsampledConv::UpsampledConv(const float* torchWeights, const float* bias, int o
     auto weight = [&](int o, int c, int ky, int kx) {
         return torchWeights[((std::size_t(o) * in + c) * 3 + ky) * 3 + kx];
     };
+    std::vector<double> phaseWeights[2][2];
     for (int py = 0; py < 2; ++py)
         for (int px = 0; px < 2; ++px) {
-            std::vector<double> folded(std::size_t(outChannels) * coarseChannels * 4, 0.0);
+            std::vector<double>& folded = phaseWeights[py][px];
+            folded.assign(std::size_t(outChannels) * coarseChannels * 4, 0.0);
             for (int o = 0; o < outChannels; ++o)
                 for (int c = 0; c < coarseChannels; ++c)
                     for (int ky = 0; ky < 3; ++ky)
@@ -40,6 +42,7 @@ UpsampledConv::UpsampledConv(const float* torchWeights, const float* bias, int o
                 skipWeights[(std::size_t(o) * skipChannels + c) * 9 + k] = weight(o, coarseChannels + c, k / 3, k % 3);
     skip_ = PackedConv(skipWeights.data(), nullptr, outChannels, skipChannels, 3, isa);
     skipWinograd_ = WinogradConv(skipWeights.data(), nullptr, outChannels, skipChannels, isa);
+    coarseWinograd_ = CoarseWinograd(phaseWeights, bias, outChannels, coarseChannels, isa);
 }
 
 void UpsampledConv::coarseRow(const ConvSource& coarse, int height, int width, int y, int x0, int x1,
@@ -81,8 +84,7 @@ void UpsampledConv::row(const PackedConv& full, const ConvSource& coarse, const 
 void UpsampledConv::rowGroup(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height,
                              int width, int tileY, int x0, int x1, Activation activation, float* const* rows) const {
     const int y0 = kWinogradRows * tileY;
-    for (int r = 0; r < kWinogradRows; ++r)
-        if (rows[r]) coarseRow(coarse, height, width, y0 + r, x0, x1, rows[r]);
+    coarseWinograd_.rows(coarse.data, height, width, y0, x0, x1, rows);
     skipWinograd_.strip(&skip, 1, height, width, tileY, x0, x1, activation, true, rows);
     for (int r = 0; r < kWinogradRows; ++r)
         if (rows[r]) unfoldedEdges(full, coarse, skip, height, width, y0 + r, x0, x1, activation, rows[r]);

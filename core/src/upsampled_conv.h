@@ -4,9 +4,10 @@
 // upsampled map fall on only 2x2 coarse pixels (which ones depends on the pixel's row and
 // column parity), so per parity the coarse part is a 2x2 convolution over the coarse level with
 // the folded weights: 4 taps instead of 9 over those channels. The skip part stays an ordinary
-// 3x3 convolution added onto it, directly (row) or, kWinogradRows rows at a time, in the
-// Winograd form of winograd_conv.h (rowGroup). The same function as Conv2d's unfolded path up to float rounding
+// 3x3 convolution added onto it, directly (row) or, kWinogradRows rows at a time, both parts in
+// Winograd forms (rowGroup: coarse_winograd.h and winograd_conv.h). The same function as Conv2d's unfolded path up to float rounding
 // (the folded weights are sums), not bit for bit.
+#include "coarse_winograd.h"
 #include "conv_kernel.h"
 #include "winograd_conv.h"
 
@@ -27,7 +28,7 @@ public:
     void row(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width, int y,
              int x0, int x1, Activation activation, float* outRow) const;
     // Rows kWinogradRows * tileY + r into rows[r], r < kWinogradRows (null past the image), at
-    // once, the skip part in the Winograd form: equal to row() up to float rounding.
+    // once, both parts in Winograd forms: equal to row() up to float rounding.
     void rowGroup(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width,
                   int tileY, int x0, int x1, Activation activation, float* const* rows) const;
 
@@ -41,7 +42,8 @@ private:
 
     PackedConv phase_[2][2];  // [row parity][column parity]: 2x2 over the coarse level, with the bias
     PackedConv skip_;         // 3x3 over the skip input, no bias
-    WinogradConv skipWinograd_;  // the same in the Winograd form
+    WinogradConv skipWinograd_;      // the same in the Winograd form
+    CoarseWinograd coarseWinograd_;  // the phases' coarse part in the Winograd form
 };
 
 }  // namespace affinity

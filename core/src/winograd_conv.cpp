@@ -6,13 +6,16 @@
 #include "affinity/error.h"
 #include "aligned_allocator.h"
 #include "simd8.h"
+#include "winograd_tiles.h"
 
 namespace affinity {
 namespace {
 
+using winograd::loadLanes;
+using winograd::storeLanes;
+
 constexpr int kRows = kWinogradRows;  // output pixels per tile side
 constexpr int kPatch = kRows + 2;     // input pixels per tile side
-constexpr int kPositions = kPatch * kPatch;
 
 // Tiles transformed at a time: 48 output columns. Their transformed input (36 x 12 x inChannels
 // floats, 108 KiB at 64 channels) stays in L2 while each position's 1x1 convolution streams
@@ -51,15 +54,6 @@ inline void outputLine(const Float8 (&m)[kPatch], Float8 (&y)[kRows]) {
     y[1] = diff12 + two * diff34;
     y[2] = sum12 + four * sum34;
     y[3] = diff12 + eight * diff34 + m[5];
-}
-
-// Lanes [0, count) of p, count in 1..8 (the rest read as 0).
-Float8 loadLanes(const float* p, int count) { return count == 8 ? Float8::loadu(p) : Float8::loadPartial(p, count); }
-void storeLanes(Float8 v, float* p, int count) {
-    if (count == 8)
-        v.storeu(p);
-    else
-        v.storePartial(p, count);
 }
 
 // V = B^T d B for the `channels` channels of a 6x6 patch whose pixel (i, j) starts at
@@ -113,37 +107,6 @@ void transformOutput(const float* m, std::size_t plane, const float* bias, int c
     }
 }
 
-// The 6x6 input patch of the tile whose top-left output pixel is (4 * tileY, 4 * tileX), for
-// transformPatch: straight from the image where the patch lies inside it, else copied into
-// `patch` (36 x channels floats) with zeros for the padding and the upsampling resolved.
-// Returns the pixel stride.
-std::size_t patchRows(const ConvSource& source, int height, int width, int tileY, int tileX, float* patch,
-                      const float* (&rows)[kPatch]) {
-    const int y0 = kRows * tileY - 1, x0 = kRows * tileX - 1;
-    const std::size_t channels = std::size_t(source.channels);
-    if (!source.upsampled && y0 >= 0 && y0 + kPatch <= height && x0 >= 0 && x0 + kPatch <= width) {
-        for (int i = 0; i < kPatch; ++i)
-            rows[i] = source.data + (std::size_t(y0 + i) * width + std::size_t(x0)) * channels;
-        return channels;
-    }
-    const std::size_t sourceWidth = source.upsampled ? std::size_t(width + 1) / 2 : std::size_t(width);
-    for (int i = 0; i < kPatch; ++i) {
-        rows[i] = patch + std::size_t(i) * kPatch * channels;
-        for (int j = 0; j < kPatch; ++j) {
-            float* dst = patch + std::size_t(i * kPatch + j) * channels;
-            const int y = y0 + i, x = x0 + j;
-            if (y < 0 || y >= height || x < 0 || x >= width) {
-                std::fill(dst, dst + channels, 0.0f);
-                continue;
-            }
-            const int sy = source.upsampled ? y / 2 : y, sx = source.upsampled ? x / 2 : x;
-            const float* pixel = source.data + (std::size_t(sy) * sourceWidth + std::size_t(sx)) * channels;
-            std::copy(pixel, pixel + channels, dst);
-        }
-    }
-    return channels;
-}
-
 }  // namespace
 
 WinogradConv::WinogradConv(const float* torchWeights, const float* bias, int outChannels, int inChannels,
@@ -190,8 +153,8 @@ void WinogradConv::strip(const ConvSource* sources, int sourceCount, int height,
             float* dst = v.data() + std::size_t(t) * in_;
             for (int s = 0; s < sourceCount; ++s) {
                 const float* patchRow[kPatch];
-                const std::size_t stride =
-                    patchRows(sources[s], height, width, tileY, firstTile + t, patch.data(), patchRow);
+                const std::size_t stride = winograd::patchRows<kPatch>(
+                    sources[s], height, width, kRows * tileY - 1, kRows * (firstTile + t) - 1, patch.data(), patchRow);
                 transformPatch(patchRow, stride, sources[s].channels, inPlane, dst);
                 dst += sources[s].channels;
             }
