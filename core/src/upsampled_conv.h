@@ -5,8 +5,8 @@
 // column parity), so per parity the coarse part is a 2x2 convolution over the coarse level with
 // the folded weights: 4 taps instead of 9 over those channels. The skip part stays an ordinary
 // 3x3 convolution added onto it, directly (row) or, kWinogradRows rows at a time, both parts in
-// Winograd forms (rowGroup: coarse_winograd.h and winograd_conv.h). The same function as Conv2d's unfolded path up to float rounding
-// (the folded weights are sums), not bit for bit.
+// Winograd forms (rowGroup: coarse_winograd.h and winograd_conv.h). The same function as
+// Conv2d's unfolded path up to float rounding (the folded weights are sums), not bit for bit.
 #include "coarse_winograd.h"
 #include "conv_kernel.h"
 #include "winograd_conv.h"
