@@ -17,10 +17,6 @@ static_assert(kWinogradRows == 4, "a group of four full-resolution rows is two c
 // Tiles (2x2 coarse positions) transformed at a time.
 constexpr int kTilesPerTask = 24;
 
-// The first of the two coarse rows (columns) that a full-resolution row (column) of this parity
-// reads, relative to its own coarse row: as upsampled_conv.cpp folds them.
-int firstCoarseTap(int parity) { return parity == 0 ? -1 : 0; }
-
 // V = B^T d B, B^T = [1 -1 0; 0 1 0; 0 -1 1], for the `channels` channels of a 3x3 patch
 // (pixel (i, j) at rows[i] + j * pixelStride); position i * 3 + j goes to dst + (i * 3 + j) * plane.
 void transformPatch(const float* const (&rows)[3], std::size_t pixelStride, int channels, std::size_t plane,

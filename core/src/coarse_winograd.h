@@ -12,6 +12,11 @@
 
 namespace affinity {
 
+// The first of the two coarse rows (columns) that the folded taps of a full-resolution row
+// (column) of this parity read, relative to its own coarse row: row 2i reads coarse rows i - 1
+// (tap -1) and i (taps 0, +1); row 2i + 1 reads i (taps -1, 0) and i + 1 (tap +1).
+inline int firstCoarseTap(int parity) { return parity == 0 ? -1 : 0; }
+
 class CoarseWinograd {
 public:
     CoarseWinograd() = default;

@@ -141,12 +141,13 @@ void Conv2d::run(const ConvSource* sources, int sourceCount, int height, int wid
     if (output.empty()) return;
     const double fmaCount = double(height) * width * outChannels() * inChannels() * size() * size();
     const bool parallel = fmaCount >= kParallelMinFma;
-    if (winograd_ && !folds(sources, sourceCount)) {
+    const bool folded = folds(sources, sourceCount);
+    if (winograd_ && !folded) {
         winograd_->apply(sources, sourceCount, height, width, activation, output, parallel);
         return;
     }
-    // Row groups where a Winograd form runs (the folded layer's skip part), else single rows.
-    const int step = folds(sources, sourceCount) ? kWinogradRows : 1;
+    // Row groups where the folded form runs (in its Winograd forms), else single rows.
+    const int step = folded ? kWinogradRows : 1;
     const int strips = (height + step - 1) / step;
     const int tiles = (width + kConvTileWidth - 1) / kConvTileWidth;
     const long long tasks = (long long)strips * tiles;

@@ -5,11 +5,6 @@
 namespace affinity {
 namespace {
 
-// The first of the two coarse rows (columns) that the taps of a full-resolution row (column) of
-// this parity read: row 2i reads coarse rows i - 1 (tap -1) and i (taps 0, +1); row 2i + 1 reads
-// i (taps -1, 0) and i + 1 (tap +1).
-int firstCoarseTap(int parity) { return parity == 0 ? -1 : 0; }
-
 // Which of the two coarse rows tap `offset` (-1, 0, +1) of a row of this parity falls on.
 int foldedTap(int parity, int offset) { return (parity + offset + 2) / 2 - 1 - firstCoarseTap(parity); }
 

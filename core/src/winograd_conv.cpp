@@ -14,8 +14,9 @@ namespace {
 using winograd::loadLanes;
 using winograd::storeLanes;
 
-constexpr int kRows = kWinogradRows;  // output pixels per tile side
-constexpr int kPatch = kRows + 2;     // input pixels per tile side
+constexpr int kRows = kWinogradRows;    // output pixels per tile side
+constexpr int kPatch = kWinogradPatch;  // input pixels per tile side
+constexpr int kPositions = kPatch * kPatch;
 
 // Tiles transformed at a time: 48 output columns. Their transformed input (36 x 12 x inChannels
 // floats, 108 KiB at 64 channels) stays in L2 while each position's 1x1 convolution streams

@@ -17,8 +17,10 @@
 
 namespace affinity {
 
-// Output rows (and columns) of one tile: what strip() computes at once.
+// Output rows (and columns) of one tile: what strip() computes at once; and the input rows
+// (and columns) of its patch.
 inline constexpr int kWinogradRows = 4;
+inline constexpr int kWinogradPatch = kWinogradRows + 2;
 
 class WinogradConv {
 public:
@@ -43,11 +45,9 @@ public:
                Activation activation, bool add, float* const* rows) const;
 
 private:
-    static constexpr int kPatch = kWinogradRows + 2;  // input rows (and columns) of a tile
-    static constexpr int kPositions = kPatch * kPatch;
-
     int out_ = 0, in_ = 0;
-    std::array<PackedConv, kPositions> positions_;  // 1x1 convolutions by U at V's position i * kPatch + j
+    // 1x1 convolutions by U at V's position i * kWinogradPatch + j
+    std::array<PackedConv, kWinogradPatch * kWinogradPatch> positions_;
     std::vector<float> bias_;
 };
 
