@@ -42,9 +42,9 @@ PackedConv::PackedConv(const float* torchWeights, const float* bias, int outChan
     if (isa == ConvIsa::Avx512 && !cpuHasAvx512())
         throw Error("convolution: the AVX-512 kernel was asked for, but this CPU or build has no AVX-512");
     // Blocks of two vectors while more than one vector's worth of channels remains, then one.
-    // With AVX-512, 24 channels run as 16 + 16 with 8 lanes idle: measured faster at 1080p
-    // (small model 850 vs 990 ms per frame) than 16 lanes + an AVX2 block of 8, whose extra
-    // pass over the input costs more than the idle lanes.
+    // With AVX-512, 24 channels run as one block of 16 + 8 lanes in one pass over the input, the
+    // 8 at half width (conv_blocks.h): a separate AVX2 block of 8 was slower (small model 990
+    // vs 850 ms per 1080p frame) for its extra pass over the input.
     const int lanes = vectorLanes();
     for (int first = 0; first < outChannels;) {
         const Block block{first, outChannels - first > lanes ? 2 : 1, 0};

@@ -8,10 +8,12 @@
 namespace affinity {
 
 void convolveRangeAvx512(const ConvBlockArgs& a, int vectors, int x0, int x1, float* outRow) {
+    // A last vector with at most 8 lanes used runs at half width (conv_blocks.h, accumulate()).
+    const bool halfTail = a.tailLanes <= 8;
     if (vectors == 2)
-        convolveRange<Float16, 2>(a, x0, x1, outRow);
+        halfTail ? convolveRange<Float16, 2, true>(a, x0, x1, outRow) : convolveRange<Float16, 2>(a, x0, x1, outRow);
     else
-        convolveRange<Float16, 1>(a, x0, x1, outRow);
+        halfTail ? convolveRange<Float16, 1, true>(a, x0, x1, outRow) : convolveRange<Float16, 1>(a, x0, x1, outRow);
 }
 
 }  // namespace affinity

@@ -225,7 +225,7 @@ TEST(Conv2d, UpsampledInputEqualsExplicitUpsampling) {
 TEST(Conv2d, InstructionSetsAgreeBitwise) {
     // The reference tests above run the default (widest) kernel; this holds the AVX2 kernel to
     // the AVX-512 one bit for bit: both accumulate each output in the same order. Channel
-    // counts straddle the 8- and 16-lane blocks (24 = 16 + 8 idle lanes, 33 = 32 + 1).
+    // counts straddle the 8- and 16-lane blocks (24 = 16 + 8 at half width, 33 = 32 + 1).
     if (!cpuHasAvx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the AVX2 kernel runs here";
     std::mt19937 rng(21);
     for (const Size size : {Size{7, 13}, Size{33, 17}, Size{3, 40}})
