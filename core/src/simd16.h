@@ -20,6 +20,7 @@ struct Float16 {
     static Float16 broadcast(const float* p) { return {_mm512_set1_ps(*p)}; }
     static Float16 broadcast(float x) { return {_mm512_set1_ps(x)}; }
     static Float16 load(const float* p) { return {_mm512_load_ps(p)}; }  // 64-byte aligned
+    static Float16 loadu(const float* p) { return {_mm512_loadu_ps(p)}; }
     void storeu(float* p) const { _mm512_storeu_ps(p, v); }
     // Loads lanes [0, count), count in 1..16, the rest 0; memory past them is not read.
     static Float16 loadPartial(const float* p, int count) {
@@ -44,6 +45,8 @@ struct Float16 {
         return {__m512(__builtin_shufflevector(x, __m256{}, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))};
     }
     friend Float16 operator*(Float16 a, Float16 b) { return {_mm512_mul_ps(a.v, b.v)}; }
+    friend Float16 operator+(Float16 a, Float16 b) { return {_mm512_add_ps(a.v, b.v)}; }
+    friend Float16 operator-(Float16 a, Float16 b) { return {_mm512_sub_ps(a.v, b.v)}; }
     // maskz with every lane: GCC 12's plain _mm512_max_ps trips -Wuninitialized.
     friend Float16 max(Float16 a, Float16 b) { return {_mm512_maskz_max_ps(__mmask16(0xFFFF), a.v, b.v)}; }
 };

@@ -14,13 +14,9 @@
 
 #include "conv_kernel.h"
 #include "feature_map.h"
+#include "winograd_transforms.h"  // kWinogradRows: output rows (and columns) of a tile
 
 namespace affinity {
-
-// Output rows (and columns) of one tile: what strip() computes at once; and the input rows
-// (and columns) of its patch.
-inline constexpr int kWinogradRows = 4;
-inline constexpr int kWinogradPatch = kWinogradRows + 2;
 
 class WinogradConv {
 public:
@@ -49,6 +45,7 @@ private:
     // 1x1 convolutions by U at V's position i * kWinogradPatch + j
     std::array<PackedConv, kWinogradPatch * kWinogradPatch> positions_;
     std::vector<float> bias_;
+    WinogradTransforms transforms_{};  // of the instruction set's vector width
 };
 
 }  // namespace affinity

@@ -1,0 +1,12 @@
+// The Winograd transforms' AVX-512 path: winograd_transforms.h with 16-lane vectors. Built with
+// -march=x86-64-v4 (core/CMakeLists.txt) and entered only after a run-time CPU check.
+#include "simd16.h"
+#include "winograd_transforms.h"
+
+namespace affinity {
+
+WinogradTransforms winogradTransformsAvx512() {
+    return {winograd_lines::transformPatch<Float16>, winograd_lines::transformOutput<Float16>};
+}
+
+}  // namespace affinity
