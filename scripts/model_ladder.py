@@ -2,11 +2,12 @@
 pixel, core ms per 1080p frame, and SMAPE / PSNR / FLIP / temporal error at every benchmarked
 spp, with the inference ablations of the default model and the baselines as reference rows.
 
-    .venv/bin/python scripts/model_ladder.py results/bench/results.csv results/speed_1080p.jsonl > results/ladder.md
+    .venv/bin/python scripts/model_ladder.py results/bench/results.csv results/speed_1080p.jsonl [MORE.jsonl ...] > results/ladder.md
 
 Inputs: the benchmark's results.csv (python -m affinity.bench, mean over its sequences) and
-the JSON lines of scripts/bench_denoiser.sh (BENCH_JSON=FILE), whose labels match the
-benchmark's `ours-<label>` methods.
+the JSON lines of one or more runs of scripts/bench_denoiser.sh (BENCH_JSON=FILE), whose labels
+match the benchmark's `ours-<label>` methods. With several runs a model's ms is the median
+over them: on a shared VM one run can be 25 % off for one model and not for the next.
 """
 
 from __future__ import annotations
@@ -19,14 +20,18 @@ from collections import defaultdict
 
 
 def main() -> None:
-    results_csv, speed_jsonl = sys.argv[1], sys.argv[2]
-    speed = {}
-    for line in open(speed_jsonl):
-        row = json.loads(line)
-        # The ladder compares whole-frame runs with the kernels the machine picks (the AVX2
-        # rows of bench_denoiser.sh are the same models, timed for the kernel comparison).
-        if not row["result"].get("streamed") and "AVX2 kernel" not in row["label"]:
-            speed[row["label"]] = row["result"]
+    results_csv, speed_runs = sys.argv[1], sys.argv[2:]
+    runs: dict[str, list[dict]] = defaultdict(list)
+    for speed_jsonl in speed_runs:
+        for line in open(speed_jsonl):
+            row = json.loads(line)
+            # The ladder compares whole-frame runs with the kernels the machine picks (the AVX2
+            # rows of bench_denoiser.sh are the same models, timed for the kernel comparison).
+            if not row["result"].get("streamed") and "AVX2 kernel" not in row["label"]:
+                runs[row["label"]].append(row["result"])
+    # Per model the run with the median time (the lower middle one for an even count).
+    speed = {label: sorted(results, key=lambda r: r["ms_per_frame"])[(len(results) - 1) // 2]
+             for label, results in runs.items()}
     # (method, spp) -> metric -> values over sequences
     values: dict[tuple[str, int], dict[str, list[float]]] = defaultdict(lambda: defaultdict(list))
     methods: list[str] = []
@@ -53,7 +58,9 @@ def main() -> None:
     sequences = len(next(iter(values.values()))["smape"])
     print(f"Model ladder: mean over the benchmark's {sequences} sequences (7 bundled failure-case scenes and "
           "4 held-out procedural seeds, 128x96, 8 frames, 1024-spp references); ms per frame is the core "
-          "(bench_denoiser) at 1920x1080, 4 spp, 2 threads. Ablations switch parts of the default model off "
+          "(bench_denoiser) at 1920x1080, 4 spp, 2 threads"
+          + (f", median of {len(speed_runs)} runs of scripts/bench_denoiser.sh" if len(speed_runs) > 1 else "")
+          + ". Ablations switch parts of the default model off "
           "at inference (not retrained).\n")
     header = ["method", "parameters", "kFLOP/px", "ms / 1080p frame"]
     for s in spp_list:
