@@ -47,8 +47,9 @@ constexpr int kBlockPixels = V::kLanes == 16 ? 12 : (N == 2 ? 6 : 8);
 // acc[m] += sum over j < count of pixel[m][j] * w[j] for M pixels: the innermost loop,
 // M x N FMAs per j, each operand in a register or one load away (base + index addressing).
 // With HalfTail (16-lane vectors only) the last vector's lanes 8-15 are idle and its
-// products run at half width (lanes 0-7 computed exactly as at full width, the rest 0): on cores that split a 512-bit FMA in two (Zen 4) a 24-channel block then costs
-// three 256-bit FMAs per pixel instead of four.
+// products run at half width (lanes 0-7 computed exactly as at full width, the rest 0): on
+// cores that split a 512-bit FMA in two (Zen 4) a 24-channel block then costs three 256-bit
+// FMAs per pixel instead of four.
 template <class V, int M, int N, bool HalfTail>
 inline void accumulate(V (&acc)[M][N], const float* const (&pixel)[M], int count, const float* w) {
     constexpr int L = V::kLanes;
