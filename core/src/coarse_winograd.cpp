@@ -3,14 +3,17 @@
 #include <algorithm>
 
 #include "aligned_allocator.h"
+#include "simd8.h"
 #include "winograd_conv.h"
 #include "winograd_tiles.h"
+#include "winograd_transforms.h"
 
 namespace affinity {
 namespace {
 
-using winograd::loadLanes;
-using winograd::storeLanes;
+// Partial loads and stores over a channel tail, shared with the F(4x4, 3x3) transforms.
+using winograd_lines::storeLanes;
+inline Float8 loadLanes(const float* p, int count) { return winograd_lines::loadLanes<Float8>(p, count); }
 
 static_assert(kWinogradRows == 4, "a group of four full-resolution rows is two coarse rows per parity");
 

@@ -1,24 +1,12 @@
 #pragma once
-// What the Winograd forms (winograd_conv.h, coarse_winograd.h) share: partial vector loads and
-// stores over a channel tail, and fetching a tile's input patch.
+// What the Winograd forms (winograd_conv.h, coarse_winograd.h) share besides the vector loads
+// of winograd_transforms.h: fetching a tile's input patch.
 #include <algorithm>
 #include <cstddef>
 
 #include "conv_kernel.h"
-#include "simd8.h"
 
 namespace affinity::winograd {
-
-// Lanes [0, count) of p, count in 1..8 (the rest read as 0).
-inline Float8 loadLanes(const float* p, int count) {
-    return count == 8 ? Float8::loadu(p) : Float8::loadPartial(p, count);
-}
-inline void storeLanes(Float8 v, float* p, int count) {
-    if (count == 8)
-        v.storeu(p);
-    else
-        v.storePartial(p, count);
-}
 
 // The Patch x Patch input patch whose top-left pixel is (y0, x0) in a height x width image read
 // from `source` (an upsampled source at (y / 2, x / 2)): rows[i] points at its row i, whose
