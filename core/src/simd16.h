@@ -31,18 +31,16 @@ struct Float16 {
         _mm512_mask_storeu_ps(p, __mmask16((1u << count) - 1u), v);
     }
     friend Float16 fma(Float16 a, Float16 b, Float16 c) { return {_mm512_fmadd_ps(a.v, b.v, c.v)}; }
-    // Half-width forms for a vector whose lanes 8-15 are idle: lanes 0-7 as above, lanes 8-15
-    // zero (a 256-bit instruction, which clears the upper lanes anyway; on Zen 4 half the work
-    // of a 512-bit one).
-    static Float16 loadLow(const float* p) { return widen(_mm256_load_ps(p)); }  // 32-byte aligned
-    friend Float16 fmaLow(Float16 a, Float16 b, Float16 c) {
-        return widen(_mm256_fmadd_ps(a.low(), b.low(), c.low()));
-    }
+    // Half-width forms for a vector whose lanes 8-15 are idle, on a 256-bit value (Half): lanes
+    // 0-7 computed as at full width by a 256-bit instruction, on Zen 4 half the work of a 512-bit one.
+    using Half = __m256;
+    static Half loadHalf(const float* p) { return _mm256_load_ps(p); }  // 32-byte aligned
+    static Half fmaHalf(Half a, Half b, Half c) { return _mm256_fmadd_ps(a, b, c); }
     // Lanes 0-7 as a 256-bit vector, and back with lanes 8-15 zero: register renames, no
     // instructions (GCC 12's cast intrinsics trip -Wmaybe-uninitialized).
-    __m256 low() const { return __m256(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7)); }
-    static Float16 widen(__m256 x) {
-        return {__m512(__builtin_shufflevector(x, __m256{}, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))};
+    Half low() const { return Half(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7)); }
+    static Float16 widen(Half x) {
+        return {__m512(__builtin_shufflevector(x, Half{}, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))};
     }
     friend Float16 operator*(Float16 a, Float16 b) { return {_mm512_mul_ps(a.v, b.v)}; }
     friend Float16 operator+(Float16 a, Float16 b) { return {_mm512_add_ps(a.v, b.v)}; }
