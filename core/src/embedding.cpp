@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <string>
 
@@ -42,6 +43,12 @@ long long prepareSamples(const float* samples, int count, float depthScale, floa
     Vec8i bad{};
     for (int s = 0; s < count; ++s) {
         const float* raw = samples + std::size_t(s) * kFeatureCount;
+        // 32 samples (2.3 KiB) ahead: on Intel the hardware streamer stops at each 4 KiB page
+        // and this pass waited on memory (embedding stage 176 -> 148 ms at 1080p, 4 spp; on
+        // Zen 4 a prefetch changed nothing). A prefetch never faults; the address is formed as an
+        // integer because it may lie past the frame.
+        __builtin_prefetch(reinterpret_cast<const void*>(reinterpret_cast<std::uintptr_t>(raw) +
+                                                         32 * kFeatureCount * sizeof(float)));
         float* in = input + std::size_t(s) * kFeatureCount;
         const Vec8f low = load8(raw), high = load8(raw + 8);
         // False for NaN and +-Inf; radiance must also not be negative.
