@@ -3,66 +3,18 @@
 #include <algorithm>
 
 #include "aligned_allocator.h"
+#include "coarse_winograd_transforms.h"
 #include "simd8.h"
 #include "winograd_conv.h"
 #include "winograd_tiles.h"
-#include "winograd_transforms.h"
 
 namespace affinity {
 namespace {
-
-// Partial loads and stores over a channel tail, shared with the F(4x4, 3x3) transforms.
-using winograd_lines::storeLanes;
-inline Float8 loadLanes(const float* p, int count) { return winograd_lines::loadLanes<Float8>(p, count); }
 
 static_assert(kWinogradRows == 4, "a group of four full-resolution rows is two coarse rows per parity");
 
 // Tiles (2x2 coarse positions) transformed at a time.
 constexpr int kTilesPerTask = 24;
-
-// V = B^T d B, B^T = [1 -1 0; 0 1 0; 0 -1 1], for the `channels` channels of a 3x3 patch
-// (pixel (i, j) at rows[i] + j * pixelStride); position i * 3 + j goes to dst + (i * 3 + j) * plane.
-void transformPatch(const float* const (&rows)[3], std::size_t pixelStride, int channels, std::size_t plane,
-                    float* dst) {
-    for (int c = 0; c < channels; c += 8) {
-        const int lanes = std::min(8, channels - c);
-        Float8 across[3][3];
-        for (int i = 0; i < 3; ++i) {
-            const Float8 d0 = loadLanes(rows[i] + c, lanes), d1 = loadLanes(rows[i] + pixelStride + c, lanes);
-            const Float8 d2 = loadLanes(rows[i] + 2 * pixelStride + c, lanes);
-            across[i][0] = d0 - d1;
-            across[i][1] = d1;
-            across[i][2] = d2 - d1;
-        }
-        for (int j = 0; j < 3; ++j) {
-            storeLanes(across[0][j] - across[1][j], dst + std::size_t(j) * plane + c, lanes);
-            storeLanes(across[1][j], dst + std::size_t(3 + j) * plane + c, lanes);
-            storeLanes(across[2][j] - across[1][j], dst + std::size_t(6 + j) * plane + c, lanes);
-        }
-    }
-}
-
-// Y = A^T M A + bias, A^T = [1 1 0; 0 1 1], for `channels` output channels of one tile; position
-// (i, j) of M at m + (i * 3 + j) * plane; output (r, q) to out[r][q].
-void transformOutput(const float* m, std::size_t plane, const float* bias, int channels,
-                     float* const (&out)[2][2]) {
-    for (int o = 0; o < channels; o += 8) {
-        const int lanes = std::min(8, channels - o);
-        Float8 down[2][3];
-        for (int j = 0; j < 3; ++j) {
-            const Float8 m0 = loadLanes(m + std::size_t(j) * plane + o, lanes);
-            const Float8 m1 = loadLanes(m + std::size_t(3 + j) * plane + o, lanes);
-            const Float8 m2 = loadLanes(m + std::size_t(6 + j) * plane + o, lanes);
-            down[0][j] = m0 + m1;
-            down[1][j] = m1 + m2;
-        }
-        const Float8 b = loadLanes(bias + o, lanes);
-        for (int r = 0; r < 2; ++r) {
-            storeLanes(down[r][0] + down[r][1] + b, out[r][0] + o, lanes);
-            storeLanes(down[r][1] + down[r][2] + b, out[r][1] + o, lanes);
-        }
-    }
-}
 
 }  // namespace
 
@@ -90,6 +42,10 @@ CoarseWinograd::CoarseWinograd(const std::vector<double> (&phaseWeights)[2][2], 
                 positions_[py][px][std::size_t(p)] =
                     PackedConv(u[std::size_t(p)].data(), nullptr, outChannels, coarseChannels, 1, isa);
         }
+    transforms_ = {coarse_lines::transformPatch<Float8>, coarse_lines::transformOutput<Float8>};
+#if AFFINITY_HAVE_AVX512_KERNEL
+    if (isa == ConvIsa::Avx512) transforms_ = coarseWinogradTransformsAvx512();  // PackedConv checked the CPU
+#endif
 }
 
 void CoarseWinograd::rows(const float* coarse, int height, int width, int y0, int x0, int x1,
@@ -117,7 +73,7 @@ void CoarseWinograd::rows(const float* coarse, int height, int width, int y0, in
                     const std::size_t stride = winograd::patchRows<3>(
                         source, coarseHeight, coarseWidth, coarseRow + firstCoarseTap(py),
                         2 * (firstTile + t) + firstCoarseTap(px), patch.data(), patchRow);
-                    transformPatch(patchRow, stride, in_, inPlane, v.data() + std::size_t(t) * in_);
+                    transforms_.patch(patchRow, stride, in_, inPlane, v.data() + std::size_t(t) * in_);
                 }
                 for (int p = 0; p < 9; ++p) {
                     const ConvSource position{v.data() + std::size_t(p) * inPlane, in_};
@@ -132,7 +88,7 @@ void CoarseWinograd::rows(const float* coarse, int height, int width, int y0, in
                             const bool wanted = outRows[r] && j >= j0 && j < j1;
                             out[r][q] = wanted ? outRows[r] + std::size_t(2 * j + px) * out_ : discard.data();
                         }
-                    transformOutput(m.data() + std::size_t(t) * out_, outPlane, bias_.data(), out_, out);
+                    transforms_.output(m.data() + std::size_t(t) * out_, outPlane, bias_.data(), out_, out);
                 }
             }
         }

@@ -8,6 +8,7 @@
 #include <array>
 #include <vector>
 
+#include "coarse_winograd_transforms.h"
 #include "conv_kernel.h"
 
 namespace affinity {
@@ -34,6 +35,7 @@ private:
     int out_ = 0, in_ = 0;
     std::array<PackedConv, 9> positions_[2][2];  // [py][px][position i * 3 + j]
     std::vector<float> bias_;
+    CoarseWinogradTransforms transforms_{};  // of the instruction set's vector width
 };
 
 }  // namespace affinity

@@ -1,5 +1,7 @@
-// The Winograd transforms' AVX-512 path: winograd_transforms.h with 16-lane vectors. Built with
-// -march=x86-64-v4 (core/CMakeLists.txt) and entered only after a run-time CPU check.
+// The Winograd transforms' AVX-512 path: winograd_transforms.h and coarse_winograd_transforms.h
+// with 16-lane vectors. Built with -march=x86-64-v4 (core/CMakeLists.txt) and entered only after
+// a run-time CPU check.
+#include "coarse_winograd_transforms.h"
 #include "simd16.h"
 #include "winograd_transforms.h"
 
@@ -7,6 +9,10 @@ namespace affinity {
 
 WinogradTransforms winogradTransformsAvx512() {
     return {winograd_lines::transformPatch<Float16>, winograd_lines::transformOutput<Float16>};
+}
+
+CoarseWinogradTransforms coarseWinogradTransformsAvx512() {
+    return {coarse_lines::transformPatch<Float16>, coarse_lines::transformOutput<Float16>};
 }
 
 }  // namespace affinity
