@@ -52,6 +52,7 @@ constexpr int kBlockPixels = V::kLanes == 16 ? 12 : (N == 2 ? 6 : 8);
 // FMAs per pixel instead of four. Those accumulators live in 256-bit registers for the whole
 // loop: kept as 512-bit values, each FMA needed a move to re-zero lanes 8-15, an extra uop on
 // the FMA ports of cores with full-width units (Intel: 24-channel blocks 0.84x of AVX2's speed).
+// The type of a block's last accumulators: V, or V::Half (256 bits) with HalfTail.
 template <class V, bool HalfTail>
 struct TailVector {
     using type = V;
