@@ -225,7 +225,8 @@ TEST(Conv2d, UpsampledInputEqualsExplicitUpsampling) {
 TEST(Conv2d, InstructionSetsAgreeBitwise) {
     // The reference tests above run the default (widest) kernel; this holds the AVX2 kernel to
     // the AVX-512 one bit for bit: both accumulate each output in the same order. Channel
-    // counts straddle the 8- and 16-lane blocks (24 = 16 + 8 at half width, 33 = 32 + 1).
+    // counts straddle the 8- and 16-lane blocks (24 = 16 + 8 at half width, 33 = 32 + 1); the
+    // folded form's 20 coarse channels run its transforms as 16 + 4 lanes against 8 + 8 + 4.
     if (!cpuHasAvx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the AVX2 kernel runs here";
     std::mt19937 rng(21);
     for (const Size size : {Size{7, 13}, Size{33, 17}, Size{3, 40}})
@@ -233,20 +234,20 @@ TEST(Conv2d, InstructionSetsAgreeBitwise) {
             for (const int kernel : {1, 3}) {
                 SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " out " +
                              std::to_string(out) + " size " + std::to_string(kernel));
-                const FeatureMap coarse = randomMap((size.height + 1) / 2, (size.width + 1) / 2, 12, rng);
+                const FeatureMap coarse = randomMap((size.height + 1) / 2, (size.width + 1) / 2, 20, rng);
                 const FeatureMap skip = randomMap(size.height, size.width, 19, rng);
                 const ConvWeights one = randomConv(out, 19, kernel, rng);
-                const ConvWeights two = randomConv(out, 31, kernel, rng);
+                const ConvWeights two = randomConv(out, 39, kernel, rng);
                 FeatureMap narrow, wide;
                 Conv2d(one.weight.data(), one.bias.data(), out, 19, kernel, ConvIsa::Avx2)
                     .apply(skip, Activation::LeakyRelu, narrow);
                 Conv2d(one.weight.data(), one.bias.data(), out, 19, kernel, ConvIsa::Avx512)
                     .apply(skip, Activation::LeakyRelu, wide);
                 ASSERT_TRUE(bitwiseEqual(narrow, wide));
-                for (const int upsampledChannels : {0, kernel == 3 ? 12 : 0}) {
-                    Conv2d(two.weight.data(), two.bias.data(), out, 31, kernel, ConvIsa::Avx2, upsampledChannels)
+                for (const int upsampledChannels : {0, kernel == 3 ? 20 : 0}) {
+                    Conv2d(two.weight.data(), two.bias.data(), out, 39, kernel, ConvIsa::Avx2, upsampledChannels)
                         .applyUpsampled(coarse, skip, Activation::None, narrow);
-                    Conv2d(two.weight.data(), two.bias.data(), out, 31, kernel, ConvIsa::Avx512, upsampledChannels)
+                    Conv2d(two.weight.data(), two.bias.data(), out, 39, kernel, ConvIsa::Avx512, upsampledChannels)
                         .applyUpsampled(coarse, skip, Activation::None, wide);
                     ASSERT_TRUE(bitwiseEqual(narrow, wide));
                 }
