@@ -36,8 +36,9 @@ struct Float16 {
     using Half = __m256;
     static Half loadHalf(const float* p) { return _mm256_load_ps(p); }  // 32-byte aligned
     static Half fmaHalf(Half a, Half b, Half c) { return _mm256_fmadd_ps(a, b, c); }
-    // Lanes 0-7 as a 256-bit vector, and back with lanes 8-15 zero: register renames, no
-    // instructions (GCC 12's cast intrinsics trip -Wmaybe-uninitialized).
+    // Lanes 0-7 as a 256-bit vector (a register rename), and back with lanes 8-15 zero (may cost
+    // a move that clears them: keep it out of inner loops). Shuffles because GCC 12's cast
+    // intrinsics trip -Wmaybe-uninitialized.
     Half low() const { return Half(__builtin_shufflevector(v, v, 0, 1, 2, 3, 4, 5, 6, 7)); }
     static Float16 widen(Half x) {
         return {__m512(__builtin_shufflevector(x, Half{}, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15))};
