@@ -44,14 +44,6 @@ namespace {
 template <class V, int N>
 constexpr int kBlockPixels = V::kLanes == 16 ? 12 : (N == 2 ? 6 : 8);
 
-// acc[m] += sum over j < count of pixel[m][j] * w[j] for M pixels: the innermost loop,
-// M x N FMAs per j, each operand in a register or one load away (base + index addressing).
-// With HalfTail (16-lane vectors only) the last vector's lanes 8-15 are idle and its
-// products run at half width (lanes 0-7 computed exactly as at full width, the rest 0): on
-// cores that split a 512-bit FMA in two (Zen 4) a 24-channel block then costs three 256-bit
-// FMAs per pixel instead of four. Those accumulators live in 256-bit registers for the whole
-// loop: kept as 512-bit values, each FMA needed a move to re-zero lanes 8-15, an extra uop on
-// the FMA ports of cores with full-width units (Intel: 24-channel blocks 0.84x of AVX2's speed).
 // The type of a block's last accumulators: V, or V::Half (256 bits) with HalfTail.
 template <class V, bool HalfTail>
 struct TailVector {
@@ -62,6 +54,14 @@ struct TailVector<V, true> {
     using type = typename V::Half;
 };
 
+// acc[m] += sum over j < count of pixel[m][j] * w[j] for M pixels: the innermost loop,
+// M x N FMAs per j, each operand in a register or one load away (base + index addressing).
+// With HalfTail (16-lane vectors only) the last vector's lanes 8-15 are idle and its
+// products run at half width (lanes 0-7 computed exactly as at full width, the rest 0): on
+// cores that split a 512-bit FMA in two (Zen 4) a 24-channel block then costs three 256-bit
+// FMAs per pixel instead of four. Those accumulators live in 256-bit registers for the whole
+// loop: kept as 512-bit values, each FMA needed a move to re-zero lanes 8-15, an extra uop on
+// the FMA ports of cores with full-width units (Intel: 24-channel blocks 0.84x of AVX2's speed).
 template <class V, int M, int N, bool HalfTail>
 inline void accumulate(V (&acc)[M][N], const float* const (&pixel)[M], int count, const float* w) {
     using Tail = typename TailVector<V, HalfTail>::type;
