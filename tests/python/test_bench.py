@@ -71,6 +71,21 @@ def test_ours_beats_the_noisy_input_on_every_scene_at_every_spp(bench: tuple[pat
         assert float(r["smape"]) < noisy[(r["sequence"], r["spp"])], (r["method"], r["sequence"], r["spp"])
 
 
+def test_a_second_reference_measures_the_references_own_noise(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:
+    out, _, log = bench
+    assert "rendered the second reference of glossy" in log
+    rows = read_rows(out / "reference_noise.csv")
+    assert [r["sequence"] for r in rows] == ["glossy", "disocclusion"]
+    noisy = {(r["sequence"], r["spp"]): float(r["smape"]) for r in read_rows(out / "results.csv") if r["method"] == "noisy"}
+    for row in rows:
+        assert all(math.isfinite(float(row[m])) for m in report.METRICS), row
+        # Other random numbers, so not the same image; 64 spp each, so far closer to each other
+        # than a 2-spp input is to either.
+        assert 0.0 < float(row["smape"]) < 0.5 * noisy[(row["sequence"], "2")], row
+        assert float(row["temporal_error"]) > 0.0, row
+    assert "## Reference noise" in (out / "results.md").read_text()
+
+
 def test_tables_and_charts_are_written(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:
     out, _, _ = bench
     markdown = (out / "results.md").read_text()

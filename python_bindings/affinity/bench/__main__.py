@@ -15,8 +15,9 @@ from collections.abc import Callable
 
 from . import report
 from .config import CONFIGS, Config
-from .data import DEFAULT_DATA_DIR, ensure_sequence, find_affinity_binary, find_source_dir, load_sequence
-from .evaluate import EQUAL_TIME_METHODS, SequenceResult, evaluate_sequence
+from .data import (DEFAULT_DATA_DIR, ensure_second_reference, ensure_sequence, find_affinity_binary, find_source_dir,
+                   load_references, load_sequence)
+from .evaluate import EQUAL_TIME_METHODS, SequenceResult, evaluate_sequence, reference_noise
 from .methods import BUILT_IN, Method, make_methods
 from .speed import measure_speed, speed_markdown, speed_rows
 
@@ -59,6 +60,9 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--methods", help="comma-separated method labels to run (default: all)")
     parser.add_argument("--sequences", help="comma-separated sequence names to run (default: the config's)")
     parser.add_argument("--reference-spp", type=int, help="override the config's reference samples per pixel")
+    parser.add_argument("--reference-noise", action=argparse.BooleanOptionalAction,
+                        help="render a second reference per sequence and score it against the first "
+                             "(default: on)")
     parser.add_argument("--speed-sizes", type=parse_size_list,
                         help="WxH,... for the speed table, or 'none' (full default 1920x1080; add 3840x2160 for 4K)")
     return parser.parse_args(argv)
@@ -91,6 +95,8 @@ def configure(args: argparse.Namespace) -> Config:
         config = config.with_overrides(reference_spp=args.reference_spp)
     if args.speed_sizes is not None:
         config = config.with_overrides(speed_sizes=args.speed_sizes)
+    if args.reference_noise is not None:
+        config = config.with_overrides(reference_noise=args.reference_noise)
     return config
 
 
@@ -155,9 +161,13 @@ def main(argv: list[str] | None = None) -> None:
           f"{', '.join(m.label for m in methods)}", flush=True)
 
     results: list[SequenceResult] = []
+    noise: list[SequenceResult] = []  # the second reference against the first, per sequence
     for sequence in config.sequences:
         folder = ensure_sequence(args.data, sequence, config, binary)
         frames, noisy_seconds = load_sequence(folder)
+        if config.reference_noise:
+            second = load_references(ensure_second_reference(args.data, sequence, config, binary))
+            noise.append(reference_noise(sequence.name, sequence.failure_case, frames, second))
         start = time.perf_counter()
         mine = evaluate_sequence(sequence.name, sequence.failure_case, frames, noisy_seconds, config.render_spp,
                                  methods, config.spp, config.equal_time_spp, config.chart_spp,
@@ -176,6 +186,9 @@ def main(argv: list[str] | None = None) -> None:
     report.write_csv(out / "results.csv", header, rows)
     header, rows = report.per_frame_rows(results)
     report.write_csv(out / "per_frame.csv", header, rows)
+    if noise:
+        header, rows = report.reference_noise_rows(noise)
+        report.write_csv(out / "reference_noise.csv", header, rows)
     for count in config.spp:
         report.chart_error_vs_time(results, count, out / f"error_vs_time_{count}spp.png", config.name)
     equal_time = [m.label for m in methods if m.family == "ours" or m.label in EQUAL_TIME_METHODS]
@@ -194,13 +207,13 @@ def main(argv: list[str] | None = None) -> None:
 
     elapsed = time.perf_counter() - started
     load = (load_at_start, os.getloadavg()[0])
-    report.write_text(out / "results.md", results_markdown(argv, config, methods, results, points, speed_text,
-                                                          notices, elapsed, load))
+    report.write_text(out / "results.md", results_markdown(argv, config, methods, results, noise, points,
+                                                          speed_text, notices, elapsed, load))
     print(f"bench: done in {elapsed:.0f} s -> {out}", flush=True)
 
 
 def results_markdown(argv: list[str], config: Config, methods: list[Method], results: list[SequenceResult],
-                     points: dict, speed_text: str, notices: list[str], elapsed: float,
+                     noise: list[SequenceResult], points: dict, speed_text: str, notices: list[str], elapsed: float,
                      load: tuple[float, float]) -> str:
     sequences = ", ".join(s.name for s in config.sequences)
     failure_cases = [s.name for s in config.sequences if s.failure_case]
@@ -231,6 +244,8 @@ def results_markdown(argv: list[str], config: Config, methods: list[Method], res
         text += "".join(f"![temporal error, {n}](temporal_error_{n}.png)\n" for n in failure_cases)
         text += f"\n## Crops of the last frame, {config.chart_spp} spp\n\n"
         text += "".join(f"![crops, {n}](crops_{n}.png)\n" for n in failure_cases)
+    if noise:
+        text += "\n## Reference noise\n\n" + report.reference_noise_markdown(noise, config.reference_spp)
     text += "\n## Per sequence\n" + report.per_scene_markdown(results, config.spp)
     if speed_text:
         text += "\n## Speed and memory\n\n" + speed_text

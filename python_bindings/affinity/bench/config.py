@@ -13,6 +13,8 @@ FAILURE_CASE_SCENES = ("disocclusion", "fine_texture", "fireflies", "glossy", "l
 HELD_OUT_SEEDS = (9100, 9101, 9102, 9103)
 #: Seed of the bundled scenes' renders, as in scripts/train_evaluate.sh.
 SCENE_RENDER_SEED = 7
+#: Added to a sequence's seed for its second, independent reference (the reference noise floor).
+SECOND_REFERENCE_SEED_OFFSET = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -38,6 +40,9 @@ class Config:
     timing_runs: int                 # each sequence is denoised this often; per frame the fastest call counts
     speed_spp: int = 4
     speed_repeats: int = 3
+    # Render a second reference with other random numbers and score it against the first: the
+    # error any output has at best, since the references are noisy too.
+    reference_noise: bool = True
 
     @property
     def render_spp(self) -> int:

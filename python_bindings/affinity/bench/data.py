@@ -6,6 +6,10 @@ samples are independent, so that is an S-spp render). The time of the noisy rend
 by a second render of the same frames without a reference (``--reference-spp 0``), whose
 ``render_summary.json`` seconds cover path tracing only (not file writing); it is stored beside
 the frames as ``noisy_timing.json``. The time at S spp is that time scaled by S / render_spp.
+
+A second reference of every sequence, rendered with other random numbers (the seed plus
+SECOND_REFERENCE_SEED_OFFSET; 1 spp of input, which nothing reads), measures how noisy the
+references themselves are: scored against the first, it is the error floor of every method.
 """
 
 from __future__ import annotations
@@ -22,7 +26,7 @@ import numpy as np
 
 import affinity
 
-from .config import Config, Sequence
+from .config import SECOND_REFERENCE_SEED_OFFSET, Config, Sequence
 
 DEFAULT_DATA_DIR = pathlib.Path.home() / ".cache" / "affinity" / "bench-v1"
 TIMING_FILE = "noisy_timing.json"
@@ -57,11 +61,19 @@ def sequence_dir(data_dir: pathlib.Path, sequence: Sequence, config: Config) -> 
                        f"{config.render_spp}spp_ref{config.reference_spp}")
 
 
+def second_reference_dir(data_dir: pathlib.Path, sequence: Sequence, config: Config) -> pathlib.Path:
+    """Cache folder of the sequence's second, independent reference."""
+    return data_dir / (
+        f"{sequence.name}_seed{sequence.seed + SECOND_REFERENCE_SEED_OFFSET}_{config.width}x{config.height}_"
+        f"{config.frames}f_ref{config.reference_spp}")
+
+
 def _render(binary: pathlib.Path, sequence: Sequence, config: Config, reference_spp: int,
-            out: pathlib.Path) -> dict[str, Any]:
+            out: pathlib.Path, spp: int | None = None, seed: int | None = None) -> dict[str, Any]:
     command = [str(binary), "render", "--scene", sequence.scene, "--frames", str(config.frames),
-               "--spp", str(config.render_spp), "--size", f"{config.width}x{config.height}",
-               "--reference-spp", str(reference_spp), "--seed", str(sequence.seed), "--out", str(out)]
+               "--spp", str(spp or config.render_spp), "--size", f"{config.width}x{config.height}",
+               "--reference-spp", str(reference_spp), "--seed", str(sequence.seed if seed is None else seed),
+               "--out", str(out)]
     result = subprocess.run(command, capture_output=True, text=True)
     if result.returncode != 0:
         raise SystemExit(f"bench: {' '.join(command)} failed:\n{result.stderr.strip()}")
@@ -99,6 +111,32 @@ def ensure_sequence(data_dir: pathlib.Path, sequence: Sequence, config: Config,
           f"{config.render_spp} spp, reference {config.reference_spp} spp) in {time.perf_counter() - start:.1f} s",
           flush=True)
     return final
+
+
+def ensure_second_reference(data_dir: pathlib.Path, sequence: Sequence, config: Config,
+                            binary: pathlib.Path) -> pathlib.Path:
+    """The folder of the sequence's second reference, rendered first if it is not there yet
+    (into a temporary sibling, renamed into place when complete)."""
+    final = second_reference_dir(data_dir, sequence, config)
+    if (final / "render_summary.json").is_file():
+        return final
+    if final.exists():
+        raise SystemExit(f"bench: {final} exists but is incomplete (no render_summary.json); remove it to re-render")
+    data_dir.mkdir(parents=True, exist_ok=True)
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix=final.name + ".partial-", dir=data_dir) as work:
+        frames_dir = pathlib.Path(work) / "frames"
+        _render(binary, sequence, config, config.reference_spp, frames_dir, spp=1,
+                seed=sequence.seed + SECOND_REFERENCE_SEED_OFFSET)
+        os.replace(frames_dir, final)
+    print(f"bench: rendered the second reference of {sequence.name} in {time.perf_counter() - start:.1f} s",
+          flush=True)
+    return final
+
+
+def load_references(folder: pathlib.Path) -> list[np.ndarray]:
+    """The reference images of a sequence folder, in frame order."""
+    return [affinity.read_frame(path)["reference"] for path in affinity.list_frame_files(folder)]
 
 
 def load_sequence(folder: pathlib.Path) -> tuple[list[dict[str, Any]], float]:

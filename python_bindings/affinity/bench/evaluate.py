@@ -103,6 +103,16 @@ def measure(outputs: list[np.ndarray], seconds: list[float], frames: list[dict[s
     return results
 
 
+def reference_noise(name: str, failure_case: bool, frames: list[dict[str, Any]],
+                    second: list[np.ndarray]) -> SequenceResult:
+    """The second, independent reference scored like a method's output against the first: the
+    error that the references' own noise gives any output. No time is measured (NaN)."""
+    height, width = second[0].shape[:2]
+    untimed = [float("nan")] * len(second)
+    return SequenceResult("reference-2", "reference", name, failure_case, 0, width, height, float("nan"),
+                          measure(second, untimed, frames))
+
+
 def evaluate_sequence(name: str, failure_case: bool, frames: list[dict[str, Any]], noisy_seconds: float,
                       render_spp: int, methods: list[Method], spp: tuple[int, ...],
                       equal_time_spp: tuple[int, ...], keep_last_at: int, timing_runs: int) -> list[SequenceResult]:

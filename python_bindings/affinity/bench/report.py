@@ -136,6 +136,24 @@ def summary_markdown(results: list[SequenceResult], spp: tuple[int, ...], descri
     return text
 
 
+def reference_noise_rows(noise: list[SequenceResult]) -> tuple[list[str], list[list[Any]]]:
+    header = ["sequence", "failure_case", "frames", *METRICS]
+    return header, [[r.sequence, int(r.failure_case), len(r.frames), *(_number(r.mean(m)) for m in METRICS)]
+                    for r in noise]
+
+
+def reference_noise_markdown(noise: list[SequenceResult], reference_spp: int) -> str:
+    """Per sequence and on average, the second reference's scores against the first."""
+    columns = [(c, h, f) for c, h, f in SUMMARY_COLUMNS if c != "ms_per_mpx"]
+    rows = [[r.sequence] + [f.format(r.mean(c)) for c, _, f in columns] for r in noise]
+    rows.append(["**mean**"] + [f.format(float(np.mean([r.mean(c) for r in noise]))) for c, _, f in columns])
+    text = (f"A second {reference_spp}-spp reference of every sequence, rendered with other random numbers, "
+            "scored against the first exactly as a method's output is. The references are noisy too, so "
+            "every method's error includes theirs: for a perfect output, about these values divided by the "
+            "square root of 2 (the errors of two independent references add in quadrature).\n\n")
+    return text + markdown_table(["sequence"] + [h for _, h, _ in columns], rows)
+
+
 def per_scene_markdown(results: list[SequenceResult], spp: tuple[int, ...]) -> str:
     text = ""
     for count in spp:
