@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "affinity_filter.h"
+#include "bilinear_warp.h"
 
 namespace affinity {
 namespace {

@@ -16,7 +16,7 @@
 namespace affinity {
 namespace {
 
-constexpr int kLanes = 8;  // of the row transposes and the warp
+constexpr int kLanes = 8;  // of the row transposes
 // Filtered signals: RGB radiance, or demodulated diffuse RGB + specular RGB (filter_signal.h).
 constexpr int kSignalChannelCounts[] = {3, 6};
 
@@ -124,57 +124,6 @@ private:
     std::vector<int> slotRow_;
     std::vector<float> storage_;
 };
-
-// Rows [begin, end) of warpBilinearRows (checked by the caller); kChannels > 0 fixes the
-// channel count at compile time, 0 reads it from the maps.
-template <int kChannels>
-void warpRows(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output) {
-    const int height = previous.height(), width = previous.width();
-    const int channels = kChannels > 0 ? kChannels : previous.channels();
-    const std::size_t rowFloats = std::size_t(width) * channels;
-#pragma omp parallel for schedule(static)
-    for (int y = begin; y < end; ++y) {
-        for (int xBlock = 0; xBlock < width; xBlock += kLanes) {
-            // Positions, taps and weights for eight pixels at once (this part vectorises), then
-            // the channel loops pixel by pixel.
-            const int count = std::min(kLanes, width - xBlock);
-            const float* m = motion + 2 * (std::size_t(y) * width + xBlock);
-            std::size_t top[kLanes], bottom[kLanes];
-            int left[kLanes], right[kLanes];
-            float fx[kLanes], fy[kLanes];
-#pragma omp simd
-            for (int l = 0; l < count; ++l) {
-                // Clamping the position to one pixel beyond the border first keeps the integer
-                // conversion defined for any motion (even NaN or huge values) and changes
-                // nothing: both taps clamp to the border pixel there anyway.
-                float sx = float(xBlock + l) + m[2 * l], sy = float(y) + m[2 * l + 1];
-                sx = sx >= -1.0f ? (sx <= float(width) ? sx : float(width)) : -1.0f;
-                sy = sy >= -1.0f ? (sy <= float(height) ? sy : float(height)) : -1.0f;
-                const float floorX = std::floor(sx), floorY = std::floor(sy);
-                fx[l] = sx - floorX;
-                fy[l] = sy - floorY;
-                const int x0 = int(floorX), y0 = int(floorY);
-                left[l] = std::clamp(x0, 0, width - 1) * channels;
-                right[l] = std::clamp(x0 + 1, 0, width - 1) * channels;
-                top[l] = std::size_t(std::clamp(y0, 0, height - 1)) * rowFloats;
-                bottom[l] = std::size_t(std::clamp(y0 + 1, 0, height - 1)) * rowFloats;
-            }
-            for (int l = 0; l < count; ++l) {
-                const float* p00 = previous.data() + top[l] + left[l];
-                const float* p01 = previous.data() + top[l] + right[l];
-                const float* p10 = previous.data() + bottom[l] + left[l];
-                const float* p11 = previous.data() + bottom[l] + right[l];
-                const float w00 = (1 - fx[l]) * (1 - fy[l]), w01 = fx[l] * (1 - fy[l]);
-                const float w10 = (1 - fx[l]) * fy[l], w11 = fx[l] * fy[l];
-                float* out = output.pixel(y % output.height(), xBlock + l);
-#pragma omp simd
-                for (int c = 0; c < channels; ++c) {
-                    out[c] = w00 * p00[c] + w01 * p01[c] + w10 * p10[c] + w11 * p11[c];
-                }
-            }
-        }
-    }
-}
 
 // A map must be `width` x `channels` and either the whole image (`imageHeight` rows) or a ring
 // of at least `ringRows` rows (ringRows = imageHeight: the whole image only).
@@ -345,36 +294,6 @@ void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, 
                         const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output,
                         ConvIsa isa) {
     runFilterRows(radiance, kernel, tapSize, dilation, temporal, imageHeight, begin, end, output, isa);
-}
-
-void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& output) {
-    if (&output == &previous) throw Error("warpBilinear: the output must not be the input");
-    output.resize(previous.height(), previous.width(), previous.channels());
-    warpBilinearRows(previous, motion, 0, previous.height(), output);
-}
-
-void warpBilinearRows(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output) {
-    if (&output == &previous) throw Error("warpBilinear: the output must not be the input");
-    const int height = previous.height(), width = previous.width(), channels = previous.channels();
-    if (begin < 0 || end > height || begin > end)
-        throw Error("warpBilinear: rows " + std::to_string(begin) + ".." + std::to_string(end) +
-                    " are not inside an image of " + std::to_string(height) + " rows");
-    if (output.width() != width || output.channels() != channels || output.height() < std::min(height, end - begin))
-        throw Error("warpBilinear: the output is " + std::to_string(output.height()) + " x " +
-                    std::to_string(output.width()) + " x " + std::to_string(output.channels()) +
-                    ", too small for rows " + std::to_string(begin) + ".." + std::to_string(end) + " of a " +
-                    std::to_string(width) + "-wide " + std::to_string(channels) + "-channel map");
-    if (begin == end || width == 0) return;
-    if (motion == nullptr) throw Error("warpBilinear: no motion vectors");
-    // The channel counts of today's maps (signal 3, features 8, embedding 16 or 32) with a
-    // constant count: the pixel's blend then compiles to a few whole-vector operations.
-    switch (channels) {
-        case 3: warpRows<3>(previous, motion, begin, end, output); break;
-        case 8: warpRows<8>(previous, motion, begin, end, output); break;
-        case 16: warpRows<16>(previous, motion, begin, end, output); break;
-        case 32: warpRows<32>(previous, motion, begin, end, output); break;
-        default: warpRows<0>(previous, motion, begin, end, output);
-    }
 }
 
 }  // namespace affinity

@@ -1,6 +1,6 @@
 #pragma once
 // The dilated affinity kernels and the temporal affinity kernel of docs/MODEL.md sections
-// 6-7, and bilinear warping by motion vectors (section 3).
+// 6-7.
 #include "conv_kernel.h"
 #include "feature_map.h"
 
@@ -51,13 +51,5 @@ void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, 
 void affinityFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
                         const TemporalTaps* temporal, int imageHeight, int begin, int end, FeatureMap& output,
                         ConvIsa isa);
-
-// output(p) = bilinear lookup of `previous` at (x + motion.x, y + motion.y), border-clamped.
-// motion: height x width x 2 floats (frame layout).
-void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& output);
-
-// Rows [begin, end) of the above into `output`, a ring of the previous map's width and channels
-// holding image row y at row y % height() (or a whole image).
-void warpBilinearRows(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output);
 
 }  // namespace affinity

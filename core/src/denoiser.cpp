@@ -9,6 +9,7 @@
 
 #include "affinity/error.h"
 #include "affinity_filter.h"
+#include "bilinear_warp.h"
 #include "band_schedule.h"
 #include "fast_exp.h"
 #include "feature_map_pool.h"
@@ -450,8 +451,7 @@ void Denoiser::State::filterInBands(const Network& net, const UnetTail& tail, co
                 // 7. The last kernel with temporal taps on the warped previous output: one row
                 // each way of warped rows.
                 const int warpTo = std::min(height, end + 1);
-                warpBilinearRows(output, motion, warpedEnd, warpTo, warpedOutput);
-                warpBilinearRows(lastFeatures, motion, warpedEnd, warpTo, warpedFeatures);
+                warpBilinearRows(lastFeatures, output, motion, warpedEnd, warpTo, warpedFeatures, warpedOutput);
                 for (int y = warpedEnd; y < warpTo; ++y)
                     std::copy(valid + std::size_t(y) * width, valid + std::size_t(y + 1) * width,
                               warpedValid.pixel(y % ringRows, 0));
@@ -617,9 +617,8 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     FeatureMap historyEmbedding = s.pool.take(height, width, E);
     FeatureMap historySignal = s.pool.take(height, width, s.signal.channels());
     if (history) {
-        warpBilinear(s.embeddingHistory, motion, historyEmbedding);
+        warpBilinear(s.embeddingHistory, s.signalHistory, motion, historyEmbedding, historySignal);
         keepWhereValid(historyEmbedding, embedding, valid);
-        warpBilinear(s.signalHistory, motion, historySignal);
         keepWhereValid(historySignal, s.signal, valid);
     } else {
         historyEmbedding = embedding;

@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "affinity_filter.h"
+#include "bilinear_warp.h"
 #include "feature_map.h"
 
 namespace affinity {

@@ -14,6 +14,7 @@
 
 #include "affinity/error.h"
 #include "affinity_filter.h"
+#include "bilinear_warp.h"
 #include "fast_exp.h"
 
 namespace affinity {
@@ -648,6 +649,40 @@ TEST(WarpBilinear, RowsIntoARingEqualTheWholeImage) {
     }
     FeatureMap tooShort(3, width, 5);
     EXPECT_THROW(warpBilinearRows(previous, motion.data(), 0, 4, tooShort), Error);
+}
+
+TEST(WarpBilinear, TwoMapsInOnePassEqualTwoSingleWarps) {
+    std::mt19937 rng(29);
+    const int height = 21, width = 27;
+    std::vector<float> motion(std::size_t(height) * width * 2);
+    std::uniform_real_distribution<float> shift(-6.0f, 6.0f);
+    for (float& m : motion) m = shift(rng);
+    // The denoiser's pairs (embedding + signal, features + output) and one of counts no
+    // specialisation knows.
+    for (const auto& [wide, narrow] : std::vector<std::pair<int, int>>{{32, 3}, {16, 12}, {8, 3}, {8, 6}, {5, 7}}) {
+        const FeatureMap first = randomMap(height, width, wide, -3.0f, 3.0f, rng);
+        const FeatureMap second = randomMap(height, width, narrow, -3.0f, 3.0f, rng);
+        FeatureMap firstAlone, secondAlone, firstTogether, secondTogether;
+        warpBilinear(first, motion.data(), firstAlone);
+        warpBilinear(second, motion.data(), secondAlone);
+        warpBilinear(first, second, motion.data(), firstTogether, secondTogether);
+        EXPECT_TRUE(bitwiseEqual(firstTogether, firstAlone)) << wide << " + " << narrow;
+        EXPECT_TRUE(bitwiseEqual(secondTogether, secondAlone)) << wide << " + " << narrow;
+        // Rows into rings, as the temporal kernel warps them.
+        FeatureMap firstRing(5, width, wide), secondRing(5, width, narrow);
+        for (int begin = 0; begin < height; begin += 5) {
+            const int end = std::min(height, begin + 5);
+            warpBilinearRows(first, second, motion.data(), begin, end, firstRing, secondRing);
+            for (int y = begin; y < end; ++y) {
+                ASSERT_EQ(std::memcmp(firstRing.pixel(y % 5, 0), firstAlone.pixel(y, 0), sizeof(float) * wide * width), 0);
+                ASSERT_EQ(std::memcmp(secondRing.pixel(y % 5, 0), secondAlone.pixel(y, 0), sizeof(float) * narrow * width), 0);
+            }
+        }
+    }
+    const FeatureMap first = randomMap(height, width, 8, -3.0f, 3.0f, rng);
+    const FeatureMap otherSize = randomMap(height, width + 1, 3, -3.0f, 3.0f, rng);
+    FeatureMap a, b;
+    EXPECT_THROW(warpBilinear(first, otherSize, motion.data(), a, b), Error);
 }
 
 TEST(WarpBilinear, ResultsDoNotDependOnTheThreadCount) {
