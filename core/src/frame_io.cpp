@@ -26,6 +26,7 @@
 #include "affinity/atomic_file.h"
 #include "affinity/error.h"
 #include "exr_header_check.h"
+#include "exr_threads.h"
 
 // The format is specified in docs/FRAME_FILES.md; keep the two in step.
 namespace affinity {
@@ -216,6 +217,7 @@ void writeExr(const std::string& temporaryPath, const Imf::Header& header,
     }
     {
         Imf::StdOFStream exrStream(stream, temporaryPath.c_str());
+        useExrWorkerThreads();
         Imf::OutputFile file(exrStream, header);
         file.setFrameBuffer(buffer);
         file.writePixels(height);
@@ -332,6 +334,7 @@ void checkMagic(const std::string& path) {
 SampleFrame readFrameFile(const std::string& path) {
     checkMagic(path);
     checkExrHeader(path);  // before OpenEXR sizes any buffer from the header
+    useExrWorkerThreads();
     Imf::InputFile file(path.c_str());
     const Imf::Header& header = file.header();
 

@@ -18,6 +18,7 @@
 
 #include "affinity/atomic_file.h"
 #include "affinity/error.h"
+#include "exr_threads.h"
 
 namespace affinity {
 namespace {
@@ -89,6 +90,7 @@ void writeRgbExr(const std::string& path, int width, int height, const float* rg
         std::ofstream stream = createFile(temporaryPath);
         {
             Imf::StdOFStream exrStream(stream, temporaryPath.c_str());
+            useExrWorkerThreads();
             Imf::OutputFile file(exrStream, header);
             file.setFrameBuffer(buffer);
             file.writePixels(height);
