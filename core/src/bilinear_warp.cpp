@@ -142,8 +142,7 @@ void warpBilinearRows(const FeatureMap& previous, const float* motion, int begin
 
 void warpBilinear(const FeatureMap& first, const FeatureMap& second, const float* motion, FeatureMap& firstOutput,
                   FeatureMap& secondOutput) {
-    if (&firstOutput == &first || &secondOutput == &second || &firstOutput == &second || &secondOutput == &first)
-        throw Error("warpBilinear: an output must not be an input");
+    if (&firstOutput == &second || &secondOutput == &first) throw Error("warpBilinear: an output must not be an input");
     firstOutput.resize(first.height(), first.width(), first.channels());
     secondOutput.resize(second.height(), second.width(), second.channels());
     warpBilinearRows(first, second, motion, 0, first.height(), firstOutput, secondOutput);
@@ -156,6 +155,7 @@ void warpBilinearRows(const FeatureMap& first, const FeatureMap& second, const f
                     std::to_string(first.width()) + " and " + std::to_string(second.height()) + " x " +
                     std::to_string(second.width()) + "; they must be the same size");
     if (&firstOutput == &secondOutput) throw Error("warpBilinear: the two outputs must differ");
+    if (&firstOutput == &second || &secondOutput == &first) throw Error("warpBilinear: an output must not be an input");
     checkRows(first, begin, end, firstOutput);
     checkRows(second, begin, end, secondOutput);
     if (begin == end || first.width() == 0) return;

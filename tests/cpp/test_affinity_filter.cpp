@@ -683,6 +683,9 @@ TEST(WarpBilinear, TwoMapsInOnePassEqualTwoSingleWarps) {
     const FeatureMap otherSize = randomMap(height, width + 1, 3, -3.0f, 3.0f, rng);
     FeatureMap a, b;
     EXPECT_THROW(warpBilinear(first, otherSize, motion.data(), a, b), Error);
+    FeatureMap second = randomMap(height, width, 3, -3.0f, 3.0f, rng);
+    EXPECT_THROW(warpBilinear(first, second, motion.data(), second, b), Error);  // would overwrite an input
+    EXPECT_THROW(warpBilinearRows(first, second, motion.data(), 0, height, a, a), Error);
 }
 
 TEST(WarpBilinear, ResultsDoNotDependOnTheThreadCount) {
