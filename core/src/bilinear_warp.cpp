@@ -12,7 +12,7 @@ namespace {
 
 constexpr int kLanes = 8;  // pixels whose taps are found together (this part vectorises)
 
-// The four taps and weights of one pixel, as clamped pixel coordinates.
+// The four taps (clamped pixel coordinates) and bilinear fractions of a block of pixels.
 struct Taps {
     int left[kLanes], right[kLanes], top[kLanes], bottom[kLanes];
     float fx[kLanes], fy[kLanes];
