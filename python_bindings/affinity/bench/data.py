@@ -20,6 +20,7 @@ import pathlib
 import subprocess
 import tempfile
 import time
+from collections.abc import Callable
 from typing import Any
 
 import numpy as np
@@ -80,24 +81,31 @@ def _render(binary: pathlib.Path, sequence: Sequence, config: Config, reference_
     return json.loads((out / "render_summary.json").read_text())
 
 
-def ensure_sequence(data_dir: pathlib.Path, sequence: Sequence, config: Config,
-                    binary: pathlib.Path) -> pathlib.Path:
-    """The sequence's cache folder, rendered first if it is not there yet.
-
-    A sequence is rendered into a temporary sibling folder and renamed into place only when it
-    is complete, so an interrupted run never leaves a folder that looks finished.
-    """
-    final = sequence_dir(data_dir, sequence, config)
-    if (final / TIMING_FILE).is_file():
-        return final
+def _render_once(data_dir: pathlib.Path, final: pathlib.Path, marker: str,
+                 render: Callable[[pathlib.Path, pathlib.Path], None]) -> float | None:
+    """Makes the cache folder `final` unless it holds `marker` (the last file a render writes):
+    render(frames_dir, work) fills frames_dir inside a temporary sibling folder, renamed into
+    place only when complete, so an interrupted run never leaves a folder that looks finished.
+    Returns the seconds it took, or None when the folder was already there."""
+    if (final / marker).is_file():
+        return None
     if final.exists():
-        raise SystemExit(f"bench: {final} exists but is incomplete (no {TIMING_FILE}); remove it to re-render")
+        raise SystemExit(f"bench: {final} exists but is incomplete (no {marker}); remove it to re-render")
     data_dir.mkdir(parents=True, exist_ok=True)
     start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix=final.name + ".partial-", dir=data_dir) as work:
         frames_dir = pathlib.Path(work) / "frames"
+        render(frames_dir, pathlib.Path(work))
+        os.replace(frames_dir, final)
+    return time.perf_counter() - start
+
+
+def ensure_sequence(data_dir: pathlib.Path, sequence: Sequence, config: Config,
+                    binary: pathlib.Path) -> pathlib.Path:
+    """The sequence's cache folder, rendered first if it is not there yet."""
+    def render(frames_dir: pathlib.Path, work: pathlib.Path) -> None:
         summary = _render(binary, sequence, config, config.reference_spp, frames_dir)
-        timing = _render(binary, sequence, config, 0, pathlib.Path(work) / "timing")
+        timing = _render(binary, sequence, config, 0, work / "timing")
         record = {
             "render_spp": config.render_spp,
             "frames": config.frames,
@@ -106,31 +114,26 @@ def ensure_sequence(data_dir: pathlib.Path, sequence: Sequence, config: Config,
             "measured_by": "affinity render --reference-spp 0 (render_summary.json seconds: path tracing only)",
         }
         (frames_dir / TIMING_FILE).write_text(json.dumps(record, indent=2) + "\n")
-        os.replace(frames_dir, final)
-    print(f"bench: rendered {sequence.name} ({config.frames} frames {config.width}x{config.height}, "
-          f"{config.render_spp} spp, reference {config.reference_spp} spp) in {time.perf_counter() - start:.1f} s",
-          flush=True)
+
+    final = sequence_dir(data_dir, sequence, config)
+    seconds = _render_once(data_dir, final, TIMING_FILE, render)
+    if seconds is not None:
+        print(f"bench: rendered {sequence.name} ({config.frames} frames {config.width}x{config.height}, "
+              f"{config.render_spp} spp, reference {config.reference_spp} spp) in {seconds:.1f} s", flush=True)
     return final
 
 
 def ensure_second_reference(data_dir: pathlib.Path, sequence: Sequence, config: Config,
                             binary: pathlib.Path) -> pathlib.Path:
-    """The folder of the sequence's second reference, rendered first if it is not there yet
-    (into a temporary sibling, renamed into place when complete)."""
-    final = second_reference_dir(data_dir, sequence, config)
-    if (final / "render_summary.json").is_file():
-        return final
-    if final.exists():
-        raise SystemExit(f"bench: {final} exists but is incomplete (no render_summary.json); remove it to re-render")
-    data_dir.mkdir(parents=True, exist_ok=True)
-    start = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix=final.name + ".partial-", dir=data_dir) as work:
-        frames_dir = pathlib.Path(work) / "frames"
+    """The folder of the sequence's second reference, rendered first if it is not there yet."""
+    def render(frames_dir: pathlib.Path, work: pathlib.Path) -> None:
         _render(binary, sequence, config, config.reference_spp, frames_dir, spp=1,
                 seed=sequence.seed + SECOND_REFERENCE_SEED_OFFSET)
-        os.replace(frames_dir, final)
-    print(f"bench: rendered the second reference of {sequence.name} in {time.perf_counter() - start:.1f} s",
-          flush=True)
+
+    final = second_reference_dir(data_dir, sequence, config)
+    seconds = _render_once(data_dir, final, "render_summary.json", render)
+    if seconds is not None:
+        print(f"bench: rendered the second reference of {sequence.name} in {seconds:.1f} s", flush=True)
     return final
 
 
