@@ -4,10 +4,12 @@
 // (input frame included). One model per process, so that peak memory is that model's.
 //
 //   bench_denoiser [--model FILE.affw] [--size 1920x1080] [--spp 4] [--frames 6] [--threads N]
-//                  [--stream 1]
+//                  [--stream 1 | --lend 1]
 //
 // --stream 1 feeds each frame one sample at a time (Denoiser::addSamples, as the Blender
 // extension does), so only one sample's features are held: the input is then 1/spp the size.
+// --lend 1 makes each frame's samples in a buffer the denoiser lends (Denoiser::sampleBands, as
+// `affinity denoise` reads frame files), whose memory serves the later stages once embedded.
 //
 // Prints one JSON object. Content of the frame does not matter for speed: plausible random
 // features with a small motion everywhere.
@@ -33,7 +35,7 @@ namespace {
 struct Options {
     std::string model;  // empty: the built-in model
     int width = 1920, height = 1080, spp = 4, frames = 6, threads = 0;
-    bool stream = false;
+    bool stream = false, lend = false;
 };
 
 Options parse(int argc, char** argv) {
@@ -55,33 +57,43 @@ Options parse(int argc, char** argv) {
             options.threads = std::stoi(value);
         else if (flag == "--stream")
             options.stream = value == "1";
+        else if (flag == "--lend")
+            options.lend = value == "1";
         else
             throw Error("bench_denoiser: unknown option " + flag);
     }
     return options;
 }
 
-SampleFrame randomFrame(int width, int height, int spp, std::uint32_t seed) {
-    SampleFrame frame(width, height, spp, false);
-    frame.info.worldToCamera = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -5, 0, 0, 0, 1};
+// Plausible random features for spp samples per pixel, [y][x][s][feature].
+void fillRandomSamples(float* samples, int width, int height, int spp, std::uint32_t seed) {
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < height; ++y) {
         std::mt19937 rng(seed * 100003u + std::uint32_t(y));
         std::uniform_real_distribution<float> u(0.0f, 1.0f);
-        for (int x = 0; x < width; ++x) {
-            for (int s = 0; s < spp; ++s) {
-                float* f = frame.sample(x, y, s);
-                for (int c = 0; c < 9; ++c) f[c] = u(rng);
-                const float nx = u(rng) - 0.5f, ny = u(rng) - 0.5f, n = std::sqrt(nx * nx + ny * ny + 1.0f);
-                f[9] = nx / n, f[10] = ny / n, f[11] = 1.0f / n;
-                f[12] = 2.0f + 3.0f * u(rng);
-                f[13] = u(rng);
-                for (int c = 14; c < kFeatureCount; ++c) f[c] = u(rng) < 0.2f ? 1.0f : 0.0f;
-            }
-            frame.motion(x, y)[0] = 0.5f;
-            frame.motion(x, y)[1] = -0.25f;
-            frame.valid(x, y) = 1.0f;
+        float* f = samples + std::size_t(y) * std::size_t(width) * std::size_t(spp) * kFeatureCount;
+        for (int i = 0; i < width * spp; ++i, f += kFeatureCount) {
+            for (int c = 0; c < 9; ++c) f[c] = u(rng);
+            const float nx = u(rng) - 0.5f, ny = u(rng) - 0.5f, n = std::sqrt(nx * nx + ny * ny + 1.0f);
+            f[9] = nx / n, f[10] = ny / n, f[11] = 1.0f / n;
+            f[12] = 2.0f + 3.0f * u(rng);
+            f[13] = u(rng);
+            for (int c = 14; c < kFeatureCount; ++c) f[c] = u(rng) < 0.2f ? 1.0f : 0.0f;
         }
+    }
+}
+
+// A frame of `spp` random samples, or with none (spp 0) for a denoiser-lent buffer; a small
+// motion everywhere.
+SampleFrame randomFrame(int width, int height, int spp, std::uint32_t seed) {
+    SampleFrame frame(width, height, std::max(spp, 1), false);
+    if (spp == 0) std::vector<float>().swap(frame.samples());
+    frame.info.worldToCamera = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -5, 0, 0, 0, 1};
+    if (spp > 0) fillRandomSamples(frame.samples().data(), width, height, spp, seed);
+    for (std::size_t i = 0; i < frame.pixelCount(); ++i) {
+        frame.motion()[2 * i] = 0.5f;
+        frame.motion()[2 * i + 1] = -0.25f;
+        frame.valid()[i] = 1.0f;
     }
     return frame;
 }
@@ -101,20 +113,27 @@ double median(std::vector<double> values) {
 int run(const Options& options) {
     if (options.threads > 0) omp_set_num_threads(options.threads);
     Model model = options.model.empty() ? Model::builtIn() : Model::fromFile(options.model);
-    // Streaming holds one sample and feeds it spp times (the values do not matter for speed).
-    const SampleFrame frame = randomFrame(options.width, options.height, options.stream ? 1 : options.spp, 1);
+    // Streaming holds one sample and feeds it spp times (the values do not matter for speed); a
+    // lent frame's samples are made in the denoiser's buffer before each frame, untimed.
+    const SampleFrame frame =
+        randomFrame(options.width, options.height, options.stream ? 1 : options.lend ? 0 : options.spp, 1);
     Denoiser denoiser(model);
     std::vector<double> wall, cpu;
     std::map<std::string, std::vector<double>> stages;
     std::vector<std::string> stageOrder;
     for (int i = 0; i < options.frames; ++i) {
         DenoiseReport report;
+        if (options.lend)
+            for (const SampleBand& band : denoiser.sampleBands(options.width, options.height, options.spp))
+                fillRandomSamples(band.samples, options.width, band.rows, options.spp, 1u + std::uint32_t(band.firstRow));
         const double cpuStart = cpuSeconds();
         const auto start = std::chrono::steady_clock::now();
         std::vector<float> output;
         if (options.stream) {
             for (int s = 0; s < options.spp; ++s)
                 denoiser.addSamples(frame.width(), frame.height(), 1, frame.samples().data());
+            output = denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, &report);
+        } else if (options.lend) {
             output = denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, &report);
         } else {
             output = denoiser.denoise(frame, &report);
@@ -128,18 +147,20 @@ int run(const Options& options) {
             stages[stage].push_back(stageMs);
         }
     }
+    const double inputBytes = double(options.width) * options.height * (options.stream ? 1 : options.spp) *
+                              kFeatureCount * sizeof(float);
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
     const double pixels = double(options.width) * options.height;
     std::printf("{\"model\": \"%s\", \"parameters\": %lld, \"kflop_per_pixel\": %.1f, \"size\": \"%dx%d\", "
                 "\"spp\": %d, \"threads\": %d, \"timed_frames\": %zu, \"ms_per_frame\": %.1f, "
                 "\"ms_per_megapixel\": %.1f, \"cpu_seconds_per_frame\": %.3f, \"gflops_per_cpu_second\": %.1f, "
-                "\"peak_rss_mb\": %.0f, \"input_frame_mb\": %.0f, \"streamed\": %s, \"stage_ms\": {",
+                "\"peak_rss_mb\": %.0f, \"input_frame_mb\": %.0f, \"streamed\": %s, \"lent\": %s, \"stage_ms\": {",
                 model.source().c_str(), static_cast<long long>(model.parameterCount()),
                 model.flopsPerPixel(options.spp) / 1000.0, options.width, options.height, options.spp,
                 omp_get_max_threads(), wall.size(), median(wall), median(wall) / (pixels / 1e6), median(cpu),
                 model.flopsPerPixel(options.spp) * pixels / median(cpu) / 1e9, double(usage.ru_maxrss) / 1024.0,
-                double(frame.samples().size() * sizeof(float)) / (1024.0 * 1024.0), options.stream ? "true" : "false");
+                inputBytes / (1024.0 * 1024.0), options.stream ? "true" : "false", options.lend ? "true" : "false");
     for (std::size_t i = 0; i < stageOrder.size(); ++i)
         std::printf("%s\"%s\": %.1f", i ? ", " : "", stageOrder[i].c_str(), median(stages[stageOrder[i]]));
     std::printf("}}\n");

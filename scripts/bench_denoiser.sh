@@ -20,7 +20,9 @@ json_out=${BENCH_JSON:-}
 # Idle OpenMP workers sleep instead of spinning, so that back-to-back runs do not slow each other.
 export OMP_WAIT_POLICY=passive
 
-# "<label>=<model file>[=stream|avx2]": stream feeds the frame one sample at a time
+# "<label>=<model file>[=lend|stream|avx2]": lend makes each frame's samples in bands the
+# denoiser lends (Denoiser::sampleBands, as `affinity denoise` reads frame files), whose memory
+# serves the later stages once embedded; stream feeds the frame one sample at a time
 # (Denoiser::addSamples, as the Blender extension does), so one sample's features are held;
 # avx2 runs the convolutions' AVX2 kernel where the CPU would pick AVX-512 (the same numbers
 # bit for bit: the rows show what the wider kernel buys on this machine, in the same run).
@@ -29,6 +31,7 @@ models=("tiny=$root/core/models/tiny.affw" "small=")
 for rung in small-e16 medium; do
   [ -f "$root/core/models/${rung/-/_}.affw" ] && models+=("$rung=$root/core/models/${rung/-/_}.affw")
 done
+models+=("tiny lent=$root/core/models/tiny.affw=lend" "small lent==lend")
 models+=("tiny streamed=$root/core/models/tiny.affw=stream" "small streamed==stream")
 if grep -q avx512f /proc/cpuinfo 2>/dev/null; then
   models+=("tiny, AVX2 kernel=$root/core/models/tiny.affw=avx2" "small, AVX2 kernel==avx2")
@@ -67,6 +70,7 @@ for entry in "${models[@]}"; do
   args=(--size "$size" --spp "$spp" --frames "${BENCH_FRAMES:-8}")  # median of all but the first
   [ -n "$file" ] && args+=(--model "$file")
   [ "$mode" = stream ] && args+=(--stream 1)
+  [ "$mode" = lend ] && args+=(--lend 1)
   isa=${AFFINITY_CONV_ISA:-}
   [ "$mode" = avx2 ] && isa=avx2
   echo "{\"label\": \"$label\", \"result\": $(AFFINITY_CONV_ISA=$isa "$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"
@@ -87,8 +91,9 @@ stages = list(rows[0]["result"]["stage_ms"])
 print(f"Denoiser speed at {size}, {spp} spp, 2 threads; OpenImageDenoise (pyoidn, colour + albedo + normal, "
       f"quality high) timed before the first model and after each one: a row's ratio is over the mean of "
       f"the OIDN runs on either side of it. Peak memory (MiB) includes the input: the "
-      f"{rows[0]['result']['input_frame_mb']:.0f} MiB frame of per-sample features, or one sample's "
-      "features for the streamed rows.")
+      f"{rows[0]['result']['input_frame_mb']:.0f} MiB frame of per-sample features (in the lent rows, "
+      "in the denoiser's own memory, which its later stages reuse), or one sample's features for the "
+      "streamed rows.")
 cpu = {}
 for line in open("/proc/cpuinfo"):
     key, _, value = line.partition(":")

@@ -25,9 +25,10 @@ def main() -> None:
     for speed_jsonl in speed_runs:
         for line in open(speed_jsonl):
             row = json.loads(line)
-            # The ladder compares whole-frame runs with the kernels the machine picks (the AVX2
-            # rows of bench_denoiser.sh are the same models, timed for the kernel comparison).
-            if not row["result"].get("streamed") and "AVX2 kernel" not in row["label"]:
+            # The ladder compares whole-frame runs with the kernels the machine picks (the AVX2,
+            # lent and streamed rows of bench_denoiser.sh are the same models, fed otherwise).
+            whole_frame = not (row["result"].get("streamed") or row["result"].get("lent"))
+            if whole_frame and "AVX2 kernel" not in row["label"]:
                 runs[row["label"]].append(row["result"])
     # Per model the run with the median time (the lower middle one for an even count).
     speed = {label: sorted(results, key=lambda r: r["ms_per_frame"])[(len(results) - 1) // 2]

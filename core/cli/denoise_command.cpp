@@ -58,10 +58,18 @@ int denoiseCommand(const std::vector<std::string>& args) {
     ProgressBar bar("denoise");
     double totalSeconds = 0.0;
     for (std::size_t i = 0; i < frames.size(); ++i) {
-        const SampleFrame frame = readFrame(frames[i]);
+        // The samples go straight into memory the denoiser lends, which serves its later stages
+        // once they are embedded: a frame's samples are not held beside all of its maps.
+        std::vector<SampleBand> bands;
+        const SampleFrame frame = readFrame(frames[i], [&](int width, int height, int spp) {
+            return bands = denoiser.sampleBands(width, height, spp);
+        });
+        const std::vector<float> noisy =
+            frame.hasReference() ? meanRadiance(bands, frame.width(), frame.height(), frame.spp()) : std::vector<float>();
         const auto start = std::chrono::steady_clock::now();
         DenoiseReport report;
-        const std::vector<float> denoised = denoiser.denoise(frame, &report);
+        const std::vector<float> denoised =
+            denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, &report);
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         totalSeconds += seconds;
         const int index = frame.info.frameIndex;
@@ -75,7 +83,7 @@ int denoiseCommand(const std::vector<std::string>& args) {
             std::fprintf(stderr, "\nwarning: %s: %lld NaN/Inf/negative radiance values read as 0\n", frames[i].c_str(),
                          report.invalidRadiance);
         if (frame.hasReference()) {
-            entry["noisy"] = errors(frame.meanRadiance(), frame.reference());
+            entry["noisy"] = errors(noisy, frame.reference());
             entry["denoised"] = errors(denoised, frame.reference());
         }
         perFrame.push_back(entry);

@@ -48,17 +48,21 @@ inline void copyPixel(const float* from, int count, float* to) {
         std::copy(from, from + count, to);
 }
 
+// How much larger than a request a free map may be and still serve it while a frame is lent in
+// bands (Denoiser::sampleBands; FeatureMapPool::kKeepRatio otherwise).
+constexpr std::size_t kLentKeepRatio = 2;
+
 // 1 / mean depth of the samples that hit something, over every kDepthScaleRowStep-th row
 // (docs/MODEL.md section 1). Rows are summed in parallel and their sums added in row order, so
 // the result does not depend on the threads.
-float depthScale(const SampleFrameView& frame) {
-    const int rows = (frame.height + kDepthScaleRowStep - 1) / kDepthScaleRowStep;
+float depthScale(const SampleBands& frame, int height) {
+    const int rows = (height + kDepthScaleRowStep - 1) / kDepthScaleRowStep;
     std::vector<double> rowSums(std::size_t(rows), 0.0);
     std::vector<long long> rowCounts(std::size_t(rows), 0);
     const std::size_t rowValues = std::size_t(frame.width) * std::size_t(frame.spp) * kFeatureCount;
 #pragma omp parallel for schedule(static)
     for (int r = 0; r < rows; ++r) {
-        const float* row = frame.samples + std::size_t(r) * kDepthScaleRowStep * rowValues;
+        const float* row = frame.row(r * kDepthScaleRowStep);
         // Branch-free, four chains: a mispredicted test and one chain of dependent double adds
         // made this pass slower than reading the frame from memory.
         double sums[4] = {0.0, 0.0, 0.0, 0.0};
@@ -191,9 +195,11 @@ struct Denoiser::State {
     FeatureMapPool pool;
     FeatureMap sampleSums;  // Embedding's per-pixel sums, until the signal is made from them
     FeatureMap signal;      // this frame's signal to accumulate, until it is
-    // A frame arriving in batches (addSamples): sums kept until finishFrame().
+    // A frame arriving in batches (addSamples): sums kept until finishFrame(). Or a whole
+    // frame's samples in a buffer lent with sampleBands().
     struct Pending {
         FeatureMap hiddenSum;  // from the pool
+        std::vector<FeatureMap> lentBands;  // from the pool, (rows, width, spp x kFeatureCount) each
         int spp = 0, width = 0, height = 0;
         float depthScale = 0.0f;
         long long invalidRadiance = 0;
@@ -222,6 +228,13 @@ struct Denoiser::State {
     // The signal to accumulate of a frame of `spp` samples from `sampleSums`, whose memory goes
     // back to the pool.
     void makeSignal(int spp);
+    // The whole pipeline on a frame whose samples are all there (given, or lent by sampleBands()).
+    std::vector<float> denoiseWholeFrame(const SampleBands& samples, int height, const float* motion,
+                                         const float* valid, const FrameInfo& info, DenoiseReport* report);
+    void giveLentBands() {
+        for (FeatureMap& band : pending.lentBands) pool.give(band);
+        pending.lentBands.clear();
+    }
     // Everything after the embedding and the signal to accumulate (in `signal`): history, U-Net,
     // filters. `local` already holds the embedding stage.
     std::vector<float> denoiseEmbedded(FeatureMap embedding, float depthScale, const FrameInfo& info,
@@ -483,26 +496,71 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
 
 std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport* report) {
     State& s = *state_;
-    const Network& net = s.model.network();
-    DenoiseReport local;
-    StageClock clock(local);
-    const int width = frame.width, height = frame.height;
-    if (width < 1 || height < 1 || frame.spp < 1) throw Error("denoise: the frame is empty");
+    if (frame.width < 1 || frame.height < 1 || frame.spp < 1) throw Error("denoise: the frame is empty");
     if (!frame.samples || !frame.motion || !frame.valid) throw Error("denoise: the frame lacks a buffer");
     if (s.pending.spp > 0)
         throw Error("denoise: " + std::to_string(s.pending.spp) +
-                    " samples added with addSamples() wait for finishFrame() (or discardSamples())");
+                    " samples added with addSamples() or lent with sampleBands() wait for finishFrame() (or "
+                    "discardSamples())");
 
+    s.pool.setKeepRatio(FeatureMapPool::kKeepRatio);
+    return s.denoiseWholeFrame(SampleBands(frame.samples, frame.height, frame.width, frame.spp), frame.height,
+                               frame.motion, frame.valid, frame.info, report);
+}
+
+std::vector<float> Denoiser::State::denoiseWholeFrame(const SampleBands& samples, int height, const float* motion,
+                                                      const float* valid, const FrameInfo& info,
+                                                      DenoiseReport* report) {
+    const Network& net = model.network();
+    DenoiseReport local;
+    StageClock clock(local);
     // 1-2. Per-sample embedding averaged per pixel; the signal to accumulate and filter.
-    const float depth = depthScale(frame);
-    FeatureMap embedding = s.pool.take(height, width, net.embedding->outChannels());
-    s.sampleSums = s.pool.take(height, width, Embedding::kSampleSumChannels);
-    local.invalidRadiance =
-        net.embedding->apply(frame.samples, height, width, frame.spp, depth, embedding, &s.sampleSums);
-    s.makeSignal(frame.spp);
+    const float depth = depthScale(samples, height);
+    FeatureMap embedding = pool.take(height, samples.width, net.embedding->outChannels());
+    // The signal straight from each chunk's sample sums: a map of the sums would be the third
+    // largest while the samples are held.
+    const SignalLayout layout = net.signalLayout();
+    signal = pool.take(height, samples.width, layout.channels());
+    const int spp = samples.spp, channels = layout.channels();
+    local.invalidRadiance = net.embedding->apply(
+        samples, height, depth, embedding, [&](long long firstPixel, int count, const float* sums) {
+            signalFromSums(sums, count, spp, layout, signal.data() + std::size_t(firstPixel) * std::size_t(channels));
+        });
+    giveLentBands();  // read: their memory serves the later stages (if they were lent)
     clock.mark("embedding");
-    return s.denoiseEmbedded(std::move(embedding), depth, frame.info, frame.motion, frame.valid, local, clock,
-                             report);
+    return denoiseEmbedded(std::move(embedding), depth, info, motion, valid, local, clock, report);
+}
+
+std::vector<SampleBand> Denoiser::sampleBands(int width, int height, int spp) {
+    State& s = *state_;
+    State::Pending& p = s.pending;
+    if (width < 1 || height < 1 || spp < 1) throw Error("sampleBands: the frame is empty");
+    if (spp > SampleFrame::kMaxSpp)
+        throw Error("sampleBands: " + std::to_string(spp) + " samples per pixel, at most " +
+                    std::to_string(SampleFrame::kMaxSpp));
+    if (p.spp > 0)
+        throw Error("sampleBands: " + std::to_string(p.spp) + " samples wait for finishFrame() (or discardSamples())");
+    s.giveLentBands();  // left by a finishFrame() that failed
+    // The bands are large maps among smaller ones: a free band serving a small map would leave
+    // the next frame's bands to new memory. Measured at 1080p, 4 spp (bench_denoiser --lend 1),
+    // peak RSS with the pool keeping maps over 2x / 3x / 6x the request for later: tiny 1290 /
+    // 1230 / 1290 MiB, small 1439 / 1550 / 1605, medium 1567 / 1487 / 1673.
+    s.pool.setKeepRatio(kLentKeepRatio);
+    // A band holds no more floats than a full-resolution embedding map, the largest maps made
+    // after the embedding, so that those can take the bands' memory.
+    const int channels = spp * kFeatureCount;
+    const int bandRows =
+        int(std::clamp<long long>((long long)height * s.model.network().embedding->outChannels() / channels, 1, height));
+    std::vector<SampleBand> bands;
+    for (int row = 0; row < height; row += bandRows) {
+        const int rows = std::min(bandRows, height - row);
+        p.lentBands.push_back(s.pool.take(rows, width, channels));
+        bands.push_back({row, rows, p.lentBands.back().data()});
+    }
+    p.width = width;
+    p.height = height;
+    p.spp = spp;
+    return bands;
 }
 
 void Denoiser::addSamples(int width, int height, int spp, const float* samples) {
@@ -511,21 +569,19 @@ void Denoiser::addSamples(int width, int height, int spp, const float* samples) 
     if (width < 1 || height < 1 || spp < 1) throw Error("addSamples: the batch is empty");
     if (!samples) throw Error("addSamples: the batch has no samples buffer");
     State::Pending& p = s.pending;
+    if (!p.lentBands.empty())
+        throw Error("addSamples: a frame lent with sampleBands() waits for finishFrame() (or discardSamples())");
     const bool first = p.spp == 0;
     if (!first && (width != p.width || height != p.height))
         throw Error("addSamples: a " + std::to_string(width) + "x" + std::to_string(height) +
                     " batch does not match the frame's first batch of " + std::to_string(p.width) + "x" +
                     std::to_string(p.height));
-    SampleFrameView batch;
-    batch.width = width;
-    batch.height = height;
-    batch.spp = spp;
-    batch.samples = samples;
     const Network& net = s.model.network();
     if (first) {
+        s.pool.setKeepRatio(FeatureMapPool::kKeepRatio);
         p.width = width;
         p.height = height;
-        p.depthScale = depthScale(batch);
+        p.depthScale = depthScale(SampleBands(samples, height, width, spp), height);
         p.invalidRadiance = 0;
         p.milliseconds = 0.0;
         p.hiddenSum = s.pool.take(height, width, net.embedding->hiddenChannels());
@@ -541,8 +597,17 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
                                          DenoiseReport* report) {
     State& s = *state_;
     State::Pending& p = s.pending;
-    if (p.spp == 0) throw Error("finishFrame: no samples were added with addSamples()");
+    if (p.spp == 0) throw Error("finishFrame: no samples were added with addSamples() or lent with sampleBands()");
     if (!motion || !valid) throw Error("finishFrame: the frame lacks a motion or validity buffer");
+    if (!p.lentBands.empty()) {
+        SampleBands samples;
+        for (const FeatureMap& band : p.lentBands) samples.bands.push_back(band.data());
+        samples.bandRows = p.lentBands.front().height();
+        samples.width = p.width;
+        samples.spp = p.spp;
+        p.spp = 0;
+        return s.denoiseWholeFrame(samples, p.height, motion, valid, info, report);
+    }
     const Network& net = s.model.network();
     DenoiseReport local;
     StageClock clock(local);
@@ -569,6 +634,7 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
 
 void Denoiser::discardSamples() {
     state_->pending.spp = 0;
+    state_->giveLentBands();
     state_->pool.give(state_->pending.hiddenSum);
     state_->pool.give(state_->sampleSums);
 }
@@ -614,7 +680,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     const int E = embedding.channels();
 
     // 3. Histories: warped previous state where valid, the current frame elsewhere.
-    FeatureMap historyEmbedding = s.pool.take(height, width, E);
+    FeatureMap historyEmbedding = s.pool.take(height, width, E);  // accumulated: the next frame's
     FeatureMap historySignal = s.pool.take(height, width, s.signal.channels());
     if (history) {
         warpBilinear(s.embeddingHistory, s.signalHistory, motion, historyEmbedding, historySignal);

@@ -164,8 +164,10 @@ int Embedding::hiddenChannels() const {
 }
 
 template <class Consume>
-long long Embedding::forEachChunk(const float* samples, long long pixels, int spp, float depthScale,
-                                  FeatureMap* sampleSums, bool firstSums, Consume consume) const {
+long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, float depthScale,
+                                  FeatureMap* sampleSums, bool firstSums, const SumsSink* sink,
+                                  Consume consume) const {
+    const int spp = samples.spp;
     const int chunkPixels = std::max(1, kChunkSamples / spp);
     const int chunkSamples = chunkPixels * spp;
     const long long chunks = (pixels + chunkPixels - 1) / chunkPixels;
@@ -180,17 +182,23 @@ long long Embedding::forEachChunk(const float* samples, long long pixels, int sp
         AlignedVector<float> ping(std::size_t(chunkSamples) * widest_);
         AlignedVector<float> pong(std::size_t(chunkSamples) * widest_);
         AlignedVector<float> scratch(std::size_t(chunkPixels) * std::max(hiddenChannels(), kFeatureCount));
+        std::vector<float> gather(samples.bands.size() > 1 ? std::size_t(chunkSamples) * kFeatureCount : 0);
+        std::vector<float> chunkSums(sink && !sampleSums ? std::size_t(chunkPixels) * kSampleSumChannels : 0);
 
 #pragma omp for schedule(dynamic, 16)
         for (long long chunk = 0; chunk < chunks; ++chunk) {
             const long long p0 = chunk * chunkPixels;
             const int count = int(std::min<long long>(chunkPixels, pixels - p0));
             const int n = count * spp;
-            const float* chunkInput = samples + std::size_t(p0) * spp * kFeatureCount;
+            const float* chunkInput = samples.pixels(p0, count, gather.data());
             bad += prepareSamples(chunkInput, n, depthScale, input.data(), radiance.data());
-            if (sampleSums)
+            if (sampleSums) {
                 addSampleSums(chunkInput, radiance.data(), count, spp, firstSums,
                               sampleSums->data() + std::size_t(p0) * kSampleSumChannels);
+            } else if (sink) {
+                addSampleSums(chunkInput, radiance.data(), count, spp, true, chunkSums.data());
+                (*sink)(p0, count, chunkSums.data());
+            }
 
             // Hidden layers per sample; `source` is what feeds the next layer.
             ConvSource source{input.data(), kFeatureCount};
@@ -206,8 +214,32 @@ long long Embedding::forEachChunk(const float* samples, long long pixels, int sp
     return bad;
 }
 
-long long Embedding::apply(const float* samples, int height, int width, int spp, float depthScale,
-                           FeatureMap& output, FeatureMap* sampleSums) const {
+const float* SampleBands::pixels(long long first, int count, float* gather) const {
+    const long long bandPixels = (long long)bandRows * width;
+    const std::size_t values = pixelValues();
+    const long long band = first / bandPixels, last = (first + count - 1) / bandPixels;
+    if (band == last) return bands[std::size_t(band)] + std::size_t(first - band * bandPixels) * values;
+    for (int p = 0; p < count; ++p) {
+        const long long pixel = first + p, b = pixel / bandPixels;
+        const float* from = bands[std::size_t(b)] + std::size_t(pixel - b * bandPixels) * values;
+        std::copy(from, from + values, gather + std::size_t(p) * values);
+    }
+    return gather;
+}
+
+long long Embedding::apply(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+                           FeatureMap* sampleSums) const {
+    return applyChunks(samples, height, depthScale, output, sampleSums, nullptr);
+}
+
+long long Embedding::apply(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+                           const SumsSink& sink) const {
+    return applyChunks(samples, height, depthScale, output, nullptr, &sink);
+}
+
+long long Embedding::applyChunks(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+                                 FeatureMap* sampleSums, const SumsSink* sink) const {
+    const int width = samples.width, spp = samples.spp;
     if (height < 0 || width < 0 || spp <= 0)
         throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
                     std::to_string(spp) + " samples per pixel");
@@ -221,7 +253,7 @@ long long Embedding::apply(const float* samples, int height, int width, int spp,
     // per sample (the same function up to float rounding, and S times fewer operations there).
     const int channels = hiddenChannels();
     const float inverseSpp = 1.0f / float(spp);
-    return forEachChunk(samples, pixels, spp, depthScale, sampleSums, true,
+    return forEachChunk(samples, pixels, depthScale, sampleSums, true, sink,
                         [&](long long p0, int count, const float* hidden, float* mean) {
                             // Mean over each pixel's samples, added in sample order.
                             for (int p = 0; p < count; ++p)
@@ -252,7 +284,7 @@ long long Embedding::accumulate(const float* samples, int height, int width, int
     const long long pixels = (long long)height * width;
     if (pixels == 0) return 0;
     // The same additions in the same order as apply()'s mean, without the final scaling.
-    return forEachChunk(samples, pixels, spp, depthScale, sampleSums, first,
+    return forEachChunk(SampleBands(samples, height, width, spp), pixels, depthScale, sampleSums, first, nullptr,
                         [&](long long p0, int count, const float* hidden, float*) {
                             for (int p = 0; p < count; ++p) {
                                 float* m = hiddenSum.data() + (std::size_t(p0) + std::size_t(p)) * channels;

@@ -1,8 +1,10 @@
 #pragma once
 // The per-sample embedding network of docs/MODEL.md section 2 and the input transform of
 // section 1: every sample's 18 features through a small MLP, averaged per pixel.
+#include <functional>
 #include <vector>
 
+#include "affinity/features.h"
 #include "conv_kernel.h"
 #include "feature_map.h"
 
@@ -12,6 +14,25 @@ struct DenseLayer {
     int in = 0, out = 0;
     std::vector<float> weight;  // [out][in], torch layout
     std::vector<float> bias;    // [out]
+};
+
+// A frame's per-sample features ([y][x][s][feature]) in bands of rows: rows
+// [i * bandRows, (i + 1) * bandRows) at bands[i], the last band possibly shorter. One band holds
+// a frame that is one buffer; a frame lent in bands (Denoiser::sampleBuffer) has several.
+struct SampleBands {
+    SampleBands() = default;
+    SampleBands(const float* samples, int frameHeight, int frameWidth, int samplesPerPixel)
+        : bands{samples}, bandRows(frameHeight), width(frameWidth), spp(samplesPerPixel) {}
+    std::vector<const float*> bands;
+    int bandRows = 0, width = 0, spp = 0;
+
+    std::size_t pixelValues() const { return std::size_t(spp) * kFeatureCount; }
+    const float* row(int y) const {
+        return bands[std::size_t(y / bandRows)] + std::size_t(y % bandRows) * std::size_t(width) * pixelValues();
+    }
+    // The samples of `count` consecutive pixels from pixel index `first` (row-major): where they
+    // are if one band holds them, else copied into `gather` (count x pixelValues() floats).
+    const float* pixels(long long first, int count, float* gather) const;
 };
 
 class Embedding {
@@ -36,7 +57,18 @@ public:
     // With `sampleSums`, also writes the sums above (height x width x kSampleSumChannels).
     // Multithreaded; the result does not depend on the thread count.
     long long apply(const float* samples, int height, int width, int spp, float depthScale,
-                    FeatureMap& output, FeatureMap* sampleSums = nullptr) const;
+                    FeatureMap& output, FeatureMap* sampleSums = nullptr) const {
+        return apply(SampleBands(samples, height, width, spp), height, depthScale, output, sampleSums);
+    }
+    // The same on samples in bands of rows: the same result bit for bit.
+    long long apply(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+                    FeatureMap* sampleSums = nullptr) const;
+    // The same with the sums handed chunk by chunk to sink(first pixel, pixel count, the chunk's
+    // sums, kSampleSumChannels per pixel), called from the worker threads, so that they need
+    // not be kept for the whole frame.
+    using SumsSink = std::function<void(long long firstPixel, int count, const float* sums)>;
+    long long apply(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+                    const SumsSink& sink) const;
 
     // apply() in two steps, for samples that arrive in batches: accumulate() adds each sample's
     // output of all layers but the last to `hiddenSum` (height x width x hiddenChannels(),
@@ -56,10 +88,13 @@ private:
     // consume(firstPixel, pixelCount, hidden, scratch) per chunk with hidden = the chunk's
     // per-sample outputs ([pixel][sample][hiddenChannels()]) and a per-thread scratch buffer of
     // chunkPixels x max(hiddenChannels(), kFeatureCount) floats.
-    // When sampleSums is given, the chunk's sums go into it (started at 0 if firstSums).
+    // When sampleSums is given, the chunk's sums go into it (started at 0 if firstSums); else
+    // when sink is, to it.
     template <class Consume>
-    long long forEachChunk(const float* samples, long long pixels, int spp, float depthScale,
-                           FeatureMap* sampleSums, bool firstSums, Consume consume) const;
+    long long forEachChunk(const SampleBands& samples, long long pixels, float depthScale,
+                           FeatureMap* sampleSums, bool firstSums, const SumsSink* sink, Consume consume) const;
+    long long applyChunks(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+                          FeatureMap* sampleSums, const SumsSink* sink) const;
 
     std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples
     int widest_ = 0;                  // most outputs of any layer

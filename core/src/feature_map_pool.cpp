@@ -17,7 +17,7 @@ FeatureMap FeatureMapPool::take(int height, int width, int channels) {
     // down now would cost a new allocation then. The ratio was measured: peak RSS at 1080p and
     // 720p, streamed and whole frames, tiny, small and demodulated small models were lowest
     // around 6x (1080p small streamed: 1587 MiB at 2x, 1516 at 4x, 1477 at 6x, 1532 at 33x).
-    if (best != free_.size() && free_[best].capacity() > kKeepRatio * needed) pick = free_.size();
+    if (best != free_.size() && free_[best].capacity() > keepRatio_ * needed) pick = free_.size();
     FeatureMap map;
     if (pick != free_.size()) {
         map = std::move(free_[pick]);

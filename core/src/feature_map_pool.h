@@ -11,10 +11,12 @@ namespace affinity {
 class FeatureMapPool {
 public:
     // A map of the given size with undefined contents: the free map that fits most tightly
-    // unless it is more than kKeepRatio times the size needed (then a new one), else the
+    // unless it is more than keepRatio() times the size needed (then a new one), else the
     // largest free map grown, else a new one.
     static constexpr std::size_t kKeepRatio = 6;
     FeatureMap take(int height, int width, int channels);
+    std::size_t keepRatio() const { return keepRatio_; }
+    void setKeepRatio(std::size_t ratio) { keepRatio_ = ratio; }
     // Takes `map` back (leaving it empty) for later take() calls.
     void give(FeatureMap& map);
 
@@ -23,6 +25,7 @@ public:
 
 private:
     std::vector<FeatureMap> free_;
+    std::size_t keepRatio_ = kKeepRatio;
 };
 
 }  // namespace affinity

@@ -8,22 +8,16 @@
 
 namespace affinity {
 
-void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& layout, FeatureMap& signal) {
-    if (sums.channels() != Embedding::kSampleSumChannels || spp < 1)
-        throw Error("filter signal: needs " + std::to_string(Embedding::kSampleSumChannels) +
-                    " sums over at least one sample");
-    signal.resize(sums.height(), sums.width(), layout.channels());
-    const long long pixels = (long long)sums.pixelCount();
+void signalFromSums(const float* sums, long long pixels, int spp, const SignalLayout& layout, float* signal) {
     const float count = float(spp);
-    const int channels = signal.channels();
-#pragma omp parallel for schedule(static)
+    const int channels = layout.channels();
     for (long long p = 0; p < pixels; ++p) {
-        const float* sum = sums.data() + std::size_t(p) * Embedding::kSampleSumChannels;
+        const float* sum = sums + std::size_t(p) * Embedding::kSampleSumChannels;
         const float* diffuse = sum + Embedding::kSumDiffuse;
         const float* specular = sum + Embedding::kSumSpecular;
         const float* emittedDiffuse = sum + Embedding::kSumEmittedDiffuse;
         const float* emittedSpecular = sum + Embedding::kSumEmittedSpecular;
-        float* out = signal.data() + std::size_t(p) * channels;
+        float* out = signal + std::size_t(p) * channels;
         for (int c = 0; c < 3; ++c) {
             // Without bypass the emissive samples' light is filtered with the rest.
             const float d = layout.emissionBypass ? diffuse[c] : diffuse[c] + emittedDiffuse[c];
@@ -39,6 +33,17 @@ void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& 
             if (layout.emissionBypass) out[channels - 3 + c] = (emittedDiffuse[c] + emittedSpecular[c]) / count;
         }
     }
+}
+
+void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& layout, FeatureMap& signal) {
+    if (sums.channels() != Embedding::kSampleSumChannels || spp < 1)
+        throw Error("filter signal: needs " + std::to_string(Embedding::kSampleSumChannels) +
+                    " sums over at least one sample");
+    signal.resize(sums.height(), sums.width(), layout.channels());
+    const int width = sums.width();
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < sums.height(); ++y)
+        signalFromSums(sums.pixel(y, 0), width, spp, layout, signal.pixel(y, 0));
 }
 
 void radianceFromSignal(const FeatureMap& filtered, const FeatureMap& accumulated, const SignalLayout& layout,

@@ -28,6 +28,9 @@ struct SignalLayout {
 // sums: Embedding's per-pixel sample sums over `spp` samples. signal: height x width x
 // layout.channels().
 void makeAccumulatedSignal(const FeatureMap& sums, int spp, const SignalLayout& layout, FeatureMap& signal);
+// The same for `pixels` consecutive pixels' sums, on the calling thread: for sums made a chunk
+// at a time that need not be kept (Embedding::apply with a SumsSink).
+void signalFromSums(const float* sums, long long pixels, int spp, const SignalLayout& layout, float* signal);
 
 // Radiance from a filtered signal and the accumulated signal it came from, whose unfiltered
 // channels hold the albedo to multiply back onto the diffuse light and the emitted radiance to

@@ -5,6 +5,13 @@
 namespace affinity {
 
 SampleFrame::SampleFrame(int width, int height, int spp, bool withReference)
+    : SampleFrame(width, height, spp, withReference, true) {}
+
+SampleFrame SampleFrame::withoutSamples(int width, int height, int spp, bool withReference) {
+    return SampleFrame(width, height, spp, withReference, false);
+}
+
+SampleFrame::SampleFrame(int width, int height, int spp, bool withReference, bool withSamples)
     : width_(width), height_(height), spp_(spp) {
     if (width < 1 || height < 1) {
         throw Error("frame size " + std::to_string(width) + "x" + std::to_string(height) +
@@ -14,7 +21,7 @@ SampleFrame::SampleFrame(int width, int height, int spp, bool withReference)
         throw Error("samples per pixel " + std::to_string(spp) + " is outside 1.." +
                     std::to_string(kMaxSpp));
     }
-    samples_.assign(pixelCount() * spp * kFeatureCount, 0.0f);
+    if (withSamples) samples_.assign(pixelCount() * spp * kFeatureCount, 0.0f);
     motion_.assign(pixelCount() * 2, 0.0f);
     valid_.assign(pixelCount(), 0.0f);
     if (withReference) reference_.assign(pixelCount() * 3, 0.0f);
@@ -30,15 +37,18 @@ SampleFrameView SampleFrame::view(const std::string& user) const {
 }
 
 std::vector<float> SampleFrame::meanRadiance() const {
-    std::vector<float> mean(pixelCount() * 3, 0.0f);
-    const float scale = 1.0f / float(spp_);
-    for (int y = 0; y < height_; ++y) {
-        for (int x = 0; x < width_; ++x) {
-            float* out = mean.data() + 3 * pixelIndex(x, y);
-            for (int s = 0; s < spp_; ++s) {
-                const float* f = sample(x, y, s);
+    return affinity::meanRadiance({SampleBand{0, height_, const_cast<float*>(samples_.data())}}, width_, height_, spp_);
+}
+
+std::vector<float> meanRadiance(const std::vector<SampleBand>& bands, int width, int height, int spp) {
+    std::vector<float> mean(std::size_t(width) * std::size_t(height) * 3, 0.0f);
+    const float scale = 1.0f / float(spp);
+    for (const SampleBand& band : bands) {
+        const float* f = band.samples;
+        float* out = mean.data() + std::size_t(band.firstRow) * std::size_t(width) * 3;
+        for (std::size_t p = 0; p < std::size_t(band.rows) * std::size_t(width); ++p, out += 3) {
+            for (int s = 0; s < spp; ++s, f += kFeatureCount)
                 for (int c = 0; c < 3; ++c) out[c] += f[channel::kDiffuse + c] + f[channel::kSpecular + c];
-            }
             for (int c = 0; c < 3; ++c) out[c] *= scale;
         }
     }

@@ -104,7 +104,7 @@ private:
     std::uint64_t hash_ = 0xcbf29ce484222325ull;
 };
 
-std::string frameChecksum(const SampleFrame& frame) {
+std::string frameChecksum(const SampleFrame& frame, const std::vector<SampleBand>& bands) {
     Checksum sum;
     const FrameInfo& info = frame.info;
     sum.add(frame.width());
@@ -121,7 +121,8 @@ std::string frameChecksum(const SampleFrame& frame) {
     }
     sum.add(info.worldToCamera.data(), 16);
     sum.add(info.cameraToClip.data(), 16);
-    sum.add(frame.samples().data(), frame.samples().size());
+    const std::size_t rowValues = std::size_t(frame.width()) * std::size_t(frame.spp()) * kFeatureCount;
+    for (const SampleBand& band : bands) sum.add(band.samples, std::size_t(band.rows) * rowValues);
     sum.add(frame.motion().data(), frame.motion().size());
     sum.add(frame.valid().data(), frame.valid().size());
     sum.add(frame.reference().data(), frame.reference().size());
@@ -143,17 +144,27 @@ Imf::Slice floatSlice(const float* first, std::size_t xStride, std::size_t yStri
                       xStride * sizeof(float), yStride * sizeof(float));
 }
 
+// The frame's samples as one band.
+std::vector<SampleBand> wholeFrameBand(const SampleFrame& frame) {
+    return {SampleBand{0, frame.height(), const_cast<float*>(frame.samples().data())}};
+}
+
 // One place that maps every channel of the format to its place in a SampleFrame, used by both
-// the writer and the reader so they cannot disagree.
-Imf::FrameBuffer frameBufferFor(const SampleFrame& frame) {
+// the writer and the reader so they cannot disagree. The samples of rows `band` are at
+// band.samples (the frame's own when it holds them).
+Imf::FrameBuffer frameBufferFor(const SampleFrame& frame, const SampleBand& band) {
     const std::size_t width = std::size_t(frame.width());
     const std::size_t spp = std::size_t(frame.spp());
     Imf::FrameBuffer buffer;
     const std::size_t sampleStride = spp * kFeatureCount;
+    // OpenEXR finds row y at origin + y * yStride: the origin of a band's rows lies before its
+    // buffer (address arithmetic only; only the band's rows are read or written).
+    const std::uintptr_t origin = reinterpret_cast<std::uintptr_t>(band.samples) -
+                                  std::uintptr_t(band.firstRow) * sampleStride * width * sizeof(float);
     for (int s = 0; s < frame.spp(); ++s) {
         for (int f = 0; f < kFeatureCount; ++f) {
             buffer.insert(sampleChannelName(s, f),
-                          floatSlice(frame.samples().data() + std::size_t(s) * kFeatureCount + f,
+                          floatSlice(reinterpret_cast<const float*>(origin) + std::size_t(s) * kFeatureCount + f,
                                      sampleStride, sampleStride * width));
         }
     }
@@ -189,7 +200,7 @@ Imf::Header headerFor(const SampleFrame& frame, ExrCompression compression) {
     Imf::Header header(frame.width(), frame.height());
     header.compression() = toImf(compression);
     header.lineOrder() = Imf::INCREASING_Y;
-    const Imf::FrameBuffer buffer = frameBufferFor(frame);
+    const Imf::FrameBuffer buffer = frameBufferFor(frame, wholeFrameBand(frame)[0]);
     for (auto it = buffer.begin(); it != buffer.end(); ++it) {
         header.channels().insert(it.name(), Imf::Channel(Imf::FLOAT));
     }
@@ -203,7 +214,7 @@ Imf::Header headerFor(const SampleFrame& frame, ExrCompression compression) {
     header.insert(attr::kSeed, Imf::StringAttribute(std::to_string(info.seed)));
     header.insert(attr::kWorldToCamera, Imf::M44fAttribute(toImath(info.worldToCamera)));
     header.insert(attr::kCameraToClip, Imf::M44fAttribute(toImath(info.cameraToClip)));
-    header.insert(attr::kChecksum, Imf::StringAttribute(frameChecksum(frame)));
+    header.insert(attr::kChecksum, Imf::StringAttribute(frameChecksum(frame, wholeFrameBand(frame))));
     return header;
 }
 
@@ -331,7 +342,7 @@ void checkMagic(const std::string& path) {
     }
 }
 
-SampleFrame readFrameFile(const std::string& path) {
+SampleFrame readFrameFile(const std::string& path, const SampleBandsFor* bandsFor) {
     checkMagic(path);
     checkExrHeader(path);  // before OpenEXR sizes any buffer from the header
     useExrWorkerThreads();
@@ -374,12 +385,21 @@ SampleFrame readFrameFile(const std::string& path) {
         throw Error("the file is incomplete (truncated or still being written)");
     }
 
-    SampleFrame frame(width, height, spp, hasReference);
+    SampleFrame frame = bandsFor ? SampleFrame::withoutSamples(width, height, spp, hasReference)
+                                 : SampleFrame(width, height, spp, hasReference);
     frame.info = std::move(info);
-    file.setFrameBuffer(frameBufferFor(frame));
-    file.readPixels(0, height - 1);
+    const std::vector<SampleBand> bands = bandsFor ? (*bandsFor)(width, height, spp) : wholeFrameBand(frame);
+    int nextRow = 0;
+    for (const SampleBand& band : bands) {
+        if (band.firstRow != nextRow || band.rows < 1 || band.firstRow + band.rows > height || !band.samples)
+            throw Error("the sample bands to read into do not cover the frame's rows in order");
+        file.setFrameBuffer(frameBufferFor(frame, band));
+        file.readPixels(band.firstRow, band.firstRow + band.rows - 1);
+        nextRow += band.rows;
+    }
+    if (nextRow != height) throw Error("the sample bands to read into do not cover the frame's rows");
 
-    const std::string checksum = frameChecksum(frame);
+    const std::string checksum = frameChecksum(frame, bands);
     if (checksum != storedChecksum) {
         throw Error("checksum mismatch (stored " + storedChecksum + ", computed " + checksum +
                     "): the file is corrupt");
@@ -394,7 +414,7 @@ void writeFrame(const std::string& path, const SampleFrame& frame, ExrCompressio
     try {
         checkBufferSizes(frame);
         const Imf::Header header = headerFor(frame, compression);
-        const Imf::FrameBuffer buffer = frameBufferFor(frame);
+        const Imf::FrameBuffer buffer = frameBufferFor(frame, wholeFrameBand(frame)[0]);
         writeAtomically(path, [&](const std::string& temporaryPath) {
             writeExr(temporaryPath, header, buffer, frame.height());
         });
@@ -405,12 +425,14 @@ void writeFrame(const std::string& path, const SampleFrame& frame, ExrCompressio
     }
 }
 
-SampleFrame readFrame(const std::string& path) {
+SampleFrame readFrame(const std::string& path) { return readFrame(path, nullptr); }
+
+SampleFrame readFrame(const std::string& path, const SampleBandsFor& bandsFor) {
     // Every failure, including OpenEXR's own exceptions on corrupt data, becomes one Error that
     // names the file.
     const std::string context = "cannot read frame file '" + path + "': ";
     try {
-        return readFrameFile(path);
+        return readFrameFile(path, bandsFor ? &bandsFor : nullptr);
     } catch (const std::bad_alloc&) {
         throw Error(context + "out of memory (corrupt image size?)");
     } catch (const std::exception& e) {

@@ -420,3 +420,89 @@ TEST(DenoiserStreaming, MisuseIsAnErrorAndDiscardingStartsOver) {
     EXPECT_EQ(denoiser.pending().spp, 0);
     EXPECT_EQ(denoiser.denoise(frame), fresh.denoise(frame));
 }
+
+namespace {
+
+// Fills the bands a denoiser lends with a frame's samples, checking that they cover its rows
+// in order.
+void fillBands(const std::vector<SampleBand>& bands, const SampleFrame& frame) {
+    int row = 0;
+    const std::size_t rowValues = std::size_t(frame.width()) * frame.spp() * kFeatureCount;
+    for (const SampleBand& band : bands) {
+        EXPECT_EQ(band.firstRow, row);
+        ASSERT_GT(band.rows, 0);
+        std::copy_n(frame.sample(0, band.firstRow, 0), std::size_t(band.rows) * rowValues, band.samples);
+        row += band.rows;
+    }
+    EXPECT_EQ(row, frame.height());
+}
+
+std::vector<float> lent(Denoiser& denoiser, const SampleFrame& frame, DenoiseReport* report = nullptr) {
+    fillBands(denoiser.sampleBands(frame.width(), frame.height(), frame.spp()), frame);
+    EXPECT_EQ(denoiser.pending().spp, frame.spp());
+    return denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, report);
+}
+
+}  // namespace
+
+// The test model's embedding has E = 8 channels: a band holds at most 8 floats per pixel of
+// the frame, so a 4-spp frame (72 floats per pixel) comes in bands of height / 9 rows and the
+// embedding's chunks of 24 pixels straddle bands.
+TEST(DenoiserLentBands, BandsGiveTheWholeFrameResultBitForBit) {
+    auto frames = test::randomSequence(3, 17, 27, 4, 31);
+    frames[1].sample(5, 20, 2)[channel::kDiffuse] = -1.0f;  // counted the same way
+    for (const bool demodulated : {false, true}) {
+        Denoiser whole(randomModel(5, demodulated)), lending(randomModel(5, demodulated));
+        for (std::size_t t = 0; t < frames.size(); ++t) {
+            DenoiseReport expectedReport, report;
+            const std::vector<float> expected = whole.denoise(frames[t], &expectedReport);
+            EXPECT_EQ(lent(lending, frames[t], &report), expected) << "frame " << t << " demodulated " << demodulated;
+            EXPECT_EQ(lending.pending().spp, 0);
+            EXPECT_EQ(report.invalidRadiance, expectedReport.invalidRadiance);
+            EXPECT_EQ(report.usedHistory, t > 0);
+        }
+    }
+}
+
+TEST(DenoiserLentBands, EachBandHoldsAtMostOneEmbeddingMapOfFloats) {
+    Denoiser denoiser(randomModel());
+    const int embedding = test::ModelShape{}.embedding.back();
+    for (const int spp : {1, 2, 4, 8}) {
+        const auto bands = denoiser.sampleBands(16, 90, spp);
+        const int bandRows = std::max(1, 90 * embedding / (spp * kFeatureCount));
+        EXPECT_EQ(bands.size(), std::size_t((90 + bandRows - 1) / bandRows)) << spp << " spp";
+        for (const auto& band : bands)
+            EXPECT_LE(std::size_t(band.rows) * 16 * spp * kFeatureCount,
+                      std::max<std::size_t>(std::size_t(90) * 16 * embedding, std::size_t(16) * spp * kFeatureCount));
+        denoiser.discardSamples();
+    }
+    EXPECT_EQ(denoiser.sampleBands(5, 3, 8).size(), 3u);  // a band holds at least one row
+}
+
+TEST(DenoiserLentBands, MisuseIsAnErrorAndDiscardingStartsOver) {
+    auto frames = test::randomSequence(1, 8, 6, 2, 32);
+    const SampleFrame& frame = frames[0];
+    Denoiser denoiser(randomModel()), fresh(randomModel());
+    EXPECT_THROW(denoiser.sampleBands(0, 6, 2), Error);
+    EXPECT_THROW(denoiser.sampleBands(8, 6, SampleFrame::kMaxSpp + 1), Error);
+    fillBands(denoiser.sampleBands(8, 6, 2), frame);
+    EXPECT_THROW(denoiser.sampleBands(8, 6, 2), Error);  // the lent frame waits
+    const std::vector<float> batch(std::size_t(8) * 6 * kFeatureCount, 0.5f);
+    try {
+        denoiser.addSamples(8, 6, 1, batch.data());
+        FAIL() << "no error";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("sampleBands"), std::string::npos) << e.what();
+    }
+    EXPECT_THROW(denoiser.denoise(frame), Error);
+    EXPECT_EQ(denoiser.pending().width, 8);
+    EXPECT_EQ(denoiser.pending().height, 6);
+    denoiser.discardSamples();
+    EXPECT_EQ(denoiser.pending().spp, 0);
+    EXPECT_THROW(denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info), Error);
+    // Streaming samples wait: no bands.
+    denoiser.addSamples(8, 6, 1, batch.data());
+    EXPECT_THROW(denoiser.sampleBands(8, 6, 2), Error);
+    denoiser.discardSamples();
+    EXPECT_EQ(lent(denoiser, frame), fresh.denoise(frame));
+}

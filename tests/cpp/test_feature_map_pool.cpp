@@ -46,6 +46,19 @@ TEST(FeatureMapPool, KeepsAMapManyTimesTheRequestForLater) {
     EXPECT_EQ(pool.freeCapacity(), 0u);
 }
 
+TEST(FeatureMapPool, TheKeepRatioCanBeSet) {
+    FeatureMapPool pool;
+    pool.setKeepRatio(2);
+    EXPECT_EQ(pool.keepRatio(), 2u);
+    FeatureMap big = pool.take(10, 10, 7);
+    const float* bigMemory = big.data();
+    pool.give(big);
+    FeatureMap small = pool.take(10, 10, 3);  // 700 > 2 x 300: a new map
+    EXPECT_NE(small.data(), bigMemory);
+    FeatureMap half = pool.take(10, 10, 4);  // 700 <= 2 x 400: the free map
+    EXPECT_EQ(half.data(), bigMemory);
+}
+
 TEST(FeatureMapPool, GrowsTheLargestFreeMapWhenNoneFits) {
     FeatureMapPool pool;
     FeatureMap a = pool.take(10, 10, 2), b = pool.take(10, 10, 1);

@@ -186,6 +186,55 @@ TEST_F(FrameIo, RoundTripIsExactForEveryCompression) {
     }
 }
 
+// Bands of 3, 3 and 1 rows (a split inside OpenEXR's 16- and 32-line blocks): the same samples
+// and the same checksum as one buffer, the frame itself without samples.
+TEST_F(FrameIo, ReadingIntoBandsGivesTheSameSamples) {
+    for (ExrCompression compression : kCompressions) {
+        SCOPED_TRACE(compressionName(compression));
+        const SampleFrame frame = randomFrame(13, 7, 5, true, 12);
+        const std::string file = path("banded.exr");
+        writeFrame(file, frame, compression);
+        const std::size_t rowValues = std::size_t(13) * 5 * kFeatureCount;
+        std::vector<float> first(3 * rowValues, -1.0f), second(3 * rowValues, -1.0f), third(rowValues, -1.0f);
+        const SampleFrame back = readFrame(file, [&](int width, int height, int spp) {
+            EXPECT_EQ(width, 13);
+            EXPECT_EQ(height, 7);
+            EXPECT_EQ(spp, 5);
+            return std::vector<SampleBand>{{0, 3, first.data()}, {3, 3, second.data()}, {6, 1, third.data()}};
+        });
+        EXPECT_TRUE(back.samples().empty());
+        std::vector<float> samples = first;
+        samples.insert(samples.end(), second.begin(), second.end());
+        samples.insert(samples.end(), third.begin(), third.end());
+        EXPECT_TRUE(sameBits(samples, frame.samples()));
+        EXPECT_TRUE(sameBits(back.motion(), frame.motion()));
+        EXPECT_TRUE(sameBits(back.valid(), frame.valid()));
+        EXPECT_TRUE(sameBits(back.reference(), frame.reference()));
+        EXPECT_TRUE(sameBits(meanRadiance({{0, 3, first.data()}, {3, 3, second.data()}, {6, 1, third.data()}}, 13, 7, 5),
+                             frame.meanRadiance()));
+    }
+}
+
+TEST_F(FrameIo, BandsThatDoNotCoverTheRowsAreAnError) {
+    const std::string file = path("frame.exr");
+    writeFrame(file, randomFrame(6, 5, 2, false, 13), ExrCompression::Zip);
+    std::vector<float> buffer(std::size_t(6) * 5 * 2 * kFeatureCount);
+    const std::vector<std::vector<SampleBand>> wrong = {
+        {{0, 4, buffer.data()}},                           // a row short
+        {{0, 2, buffer.data()}, {3, 2, buffer.data()}},    // a gap
+        {{0, 5, nullptr}},                                 // no memory
+        {{0, 3, buffer.data()}, {3, 3, buffer.data()}}};   // past the end
+    for (const auto& bands : wrong) {
+        try {
+            (void)readFrame(file, [&](int, int, int) { return bands; });
+            ADD_FAILURE() << "no error";
+        } catch (const Error& e) {
+            EXPECT_NE(std::string(e.what()).find("bands"), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find(file), std::string::npos) << e.what();
+        }
+    }
+}
+
 TEST_F(FrameIo, RoundTripWithoutReference) {
     for (ExrCompression compression : kCompressions) {
         SCOPED_TRACE(compressionName(compression));

@@ -54,6 +54,15 @@ public:
     std::vector<float> finishFrame(const float* motion, const float* valid, const FrameInfo& info,
                                    DenoiseReport* report = nullptr);
     void discardSamples();
+    // Lent input, for callers that make a whole frame's samples at once (a file reader): memory
+    // of the denoiser's own for width x height x spp samples, in bands of whole rows, each band
+    // [row][x][s][feature]; the caller fills every band, then finishFrame() denoises them, bit
+    // for bit what denoise() gives on the same samples. Once the embedding has read the bands,
+    // their memory serves the later stages (bands are about the size of those stages' largest
+    // maps, so they can), and the samples add little to a frame's peak memory. The bands are
+    // the denoiser's again at finishFrame() or discardSamples() (which drops them); contents
+    // start undefined. Throws affinity::Error, as addSamples() does, while other samples wait.
+    std::vector<SampleBand> sampleBands(int width, int height, int spp);
     // The frame being streamed: its size, and the samples added since the last finishFrame()
     // (0 when none).
     struct PendingFrame {

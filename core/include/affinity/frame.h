@@ -43,11 +43,25 @@ struct SampleFrameView {
     }
 };
 
+// Rows [firstRow, firstRow + rows) of a frame's per-sample features, [row][x][s][feature]: a
+// frame's samples may be held in several such bands (Denoiser::sampleBands lends them).
+struct SampleBand {
+    int firstRow = 0, rows = 0;
+    float* samples = nullptr;
+};
+
+// Per-pixel mean of the samples' radiance (diffuse + specular) of a frame held in bands that
+// cover its rows in order: the noisy input, [y][x][3].
+std::vector<float> meanRadiance(const std::vector<SampleBand>& bands, int width, int height, int spp);
+
 class SampleFrame {
 public:
     SampleFrame() = default;
     // Allocates zeroed buffers; throws affinity::Error for sizes < 1 or spp outside [1, kMaxSpp].
     SampleFrame(int width, int height, int spp, bool withReference);
+    // The same without the samples, which live elsewhere (bands; frame_io.h's readFrame):
+    // samples() is empty.
+    static SampleFrame withoutSamples(int width, int height, int spp, bool withReference);
 
     static constexpr int kMaxSpp = 64;
 
@@ -94,6 +108,7 @@ public:
     std::size_t pixelIndex(int x, int y) const { return std::size_t(y) * width_ + x; }
 
 private:
+    SampleFrame(int width, int height, int spp, bool withReference, bool withSamples);
     std::size_t sampleOffset(int x, int y, int s) const {
         return (pixelIndex(x, y) * spp_ + s) * kFeatureCount;
     }

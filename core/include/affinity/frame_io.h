@@ -3,6 +3,7 @@
 // motion / validity / reference and the metadata. The channel naming scheme is documented in
 // docs/FRAME_FILES.md. Writes are atomic; reads reject anything incomplete with an
 // affinity::Error naming the file and the problem.
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -16,6 +17,11 @@ enum class ExrCompression { None, Zip, Piz };
 void writeFrame(const std::string& path, const SampleFrame& frame,
                 ExrCompression compression = ExrCompression::Piz);
 SampleFrame readFrame(const std::string& path);
+// The same with the samples read into the bands bandsFor(width, height, spp) returns, which
+// must cover the rows in order, instead of into the frame, whose samples() stays empty: for a
+// reader that hands them on (Denoiser::sampleBands), so that they are never held twice.
+using SampleBandsFor = std::function<std::vector<SampleBand>(int width, int height, int spp)>;
+SampleFrame readFrame(const std::string& path, const SampleBandsFor& bandsFor);
 
 // "frame_0007.exr" for index 7: the name every sequence folder uses.
 std::string frameFileName(int frameIndex);
