@@ -2,16 +2,21 @@
 
 #include <algorithm>
 
+#include "map_memory.h"
+
 namespace affinity {
+
+FeatureMap::~FeatureMap() { releaseMapMemory(data_, capacity_); }
 
 void FeatureMap::resize(int height, int width, int channels) {
     height_ = height;
     width_ = width;
     channels_ = channels;
     if (size() > capacity_) {
-        data_.reset();  // first: the old and the new buffer are never held together
+        releaseMapMemory(data_, capacity_);  // first: the old and the new buffer are never held together
+        data_ = nullptr;
         capacity_ = 0;
-        data_.reset(static_cast<float*>(::operator new[](size() * sizeof(float), std::align_val_t(64))));
+        data_ = allocateMapMemory(size());
         capacity_ = size();
     }
 }
@@ -24,6 +29,6 @@ FeatureMap& FeatureMap::operator=(const FeatureMap& other) {
     return *this;
 }
 
-void FeatureMap::fill(float value) { std::fill(data_.get(), data_.get() + size(), value); }
+void FeatureMap::fill(float value) { std::fill(data_, data_ + size(), value); }
 
 }  // namespace affinity

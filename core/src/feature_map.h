@@ -2,8 +2,6 @@
 // An image of C float channels per pixel, stored NHWC (channels of a pixel contiguous, rows
 // top to bottom) in 64-byte aligned memory: the buffer type of every denoiser stage.
 #include <cstddef>
-#include <memory>
-#include <new>
 #include <utility>
 
 namespace affinity {
@@ -15,6 +13,7 @@ public:
     FeatureMap(const FeatureMap& other) { *this = other; }
     FeatureMap& operator=(const FeatureMap& other);  // deep copy
     FeatureMap(FeatureMap&& other) noexcept { swap(other); }
+    ~FeatureMap();
     FeatureMap& operator=(FeatureMap&& other) noexcept {
         FeatureMap moved;
         moved.swap(other);
@@ -41,16 +40,13 @@ public:
     bool empty() const { return size() == 0; }
     std::size_t capacity() const { return capacity_; }  // floats held
 
-    float* data() { return data_.get(); }
-    const float* data() const { return data_.get(); }
-    float* pixel(int y, int x) { return data_.get() + (std::size_t(y) * width_ + x) * channels_; }
-    const float* pixel(int y, int x) const { return data_.get() + (std::size_t(y) * width_ + x) * channels_; }
+    float* data() { return data_; }
+    const float* data() const { return data_; }
+    float* pixel(int y, int x) { return data_ + (std::size_t(y) * width_ + x) * channels_; }
+    const float* pixel(int y, int x) const { return data_ + (std::size_t(y) * width_ + x) * channels_; }
 
 private:
-    struct AlignedDelete {
-        void operator()(float* p) const { ::operator delete[](p, std::align_val_t(64)); }
-    };
-    std::unique_ptr<float[], AlignedDelete> data_;
+    float* data_ = nullptr;  // capacity_ floats from allocateMapMemory (map_memory.h)
     std::size_t capacity_ = 0;
     int height_ = 0, width_ = 0, channels_ = 0;
 };
