@@ -1,4 +1,5 @@
-// libFuzzer target: readFrame on arbitrary bytes written to a file. Rejection with
+// libFuzzer target: readFrame on arbitrary bytes written to a file, into the frame and into bands
+// of rows. Rejection with
 // affinity::Error is the expected outcome; any other exception, a crash, a leak or undefined
 // behaviour (ours or OpenEXR's) is a finding.
 #include <unistd.h>
@@ -8,6 +9,7 @@
 #include <cstdio>
 #include <cstdlib>
 #include <string>
+#include <vector>
 
 #include "affinity/error.h"
 #include "affinity/frame_io.h"
@@ -40,6 +42,26 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         float sum = 0.0f;
         for (const float value : frame.samples()) sum += value;
         for (const float value : frame.motion()) sum += value;
+        volatile float sink = sum;
+        (void)sink;
+    } catch (const affinity::Error&) {
+    }
+    // Again into two bands of rows (as `affinity denoise` reads into a denoiser's memory).
+    try {
+        std::vector<float> top, bottom;
+        const affinity::SampleFrame frame = affinity::readFrame(path, [&](int width, int height, int spp) {
+            const std::size_t rowValues = std::size_t(width) * std::size_t(spp) * affinity::kFeatureCount;
+            const int half = (height + 1) / 2;
+            top.assign(std::size_t(half) * rowValues, 0.0f);
+            bottom.assign(std::size_t(height - half) * rowValues, 0.0f);
+            std::vector<affinity::SampleBand> bands{{0, half, top.data()}};
+            if (height > half) bands.push_back({half, height - half, bottom.data()});
+            return bands;
+        });
+        float sum = 0.0f;
+        for (const float value : top) sum += value;
+        for (const float value : bottom) sum += value;
+        for (const float value : frame.valid()) sum += value;
         volatile float sink = sum;
         (void)sink;
     } catch (const affinity::Error&) {
