@@ -1,6 +1,7 @@
 #include "affinity/frame_io.h"
 
 #include <OpenEXR/ImfChannelList.h>
+#include <OpenEXR/ImfCompression.h>
 #include <OpenEXR/ImfFrameBuffer.h>
 #include <OpenEXR/ImfHeader.h>
 #include <OpenEXR/ImfInputFile.h>
@@ -17,11 +18,14 @@
 #include <cstdint>
 #include <cstdio>
 #include <cstring>
+#include <exception>
 #include <filesystem>
 #include <fstream>
 #include <new>
 #include <set>
 #include <utility>
+
+#include <omp.h>
 
 #include "affinity/atomic_file.h"
 #include "affinity/error.h"
@@ -342,11 +346,69 @@ void checkMagic(const std::string& path) {
     }
 }
 
+// Rows [first, end) of the frame file into `frame` and the bands that hold its samples.
+void readRows(Imf::InputFile& file, const SampleFrame& frame, const std::vector<SampleBand>& bands, int first,
+              int end) {
+    for (const SampleBand& band : bands) {
+        const int from = std::max(first, band.firstRow), to = std::min(end, band.firstRow + band.rows);
+        if (from >= to) continue;
+        file.setFrameBuffer(frameBufferFor(frame, band));
+        file.readPixels(from, to - 1);
+    }
+}
+
+// Rows per compression block of a scanline file (OpenEXR's file format documentation); a wrong
+// value here would only make a block be decoded twice.
+int linesPerBlock(Imf::Compression compression) {
+    switch (compression) {
+        case Imf::NO_COMPRESSION:
+        case Imf::RLE_COMPRESSION:
+        case Imf::ZIPS_COMPRESSION: return 1;
+        case Imf::ZIP_COMPRESSION:
+        case Imf::PXR24_COMPRESSION: return 16;
+        case Imf::DWAB_COMPRESSION: return 256;
+        default: return 32;  // PIZ, B44, B44A, DWAA
+    }
+}
+
+// The whole frame, its rows split between OpenMP's threads at compression-block boundaries
+// (no block is decoded twice); each thread reads through a file of its own, the first through
+// `file`. A 1080p 4-spp PIZ frame read in about the time OpenEXR's own two worker threads took.
+void readRowsInParallel(const std::string& path, Imf::InputFile& file, const SampleFrame& frame,
+                        const std::vector<SampleBand>& bands) {
+    const int height = frame.height();
+    const int block = linesPerBlock(file.header().compression());
+    const int blocks = (height + block - 1) / block;
+    const int readers = std::max(1, std::min(omp_get_max_threads(), blocks));
+    std::vector<std::exception_ptr> failures(static_cast<std::size_t>(readers));
+#pragma omp parallel num_threads(readers)
+    {
+        const int reader = omp_get_thread_num(), count = omp_get_num_threads();
+        const int first = std::min(height, blocks * reader / count * block);
+        const int end = std::min(height, blocks * (reader + 1) / count * block);
+        try {
+            if (reader == 0) {
+                readRows(file, frame, bands, first, end);
+            } else {
+                Imf::InputFile own(path.c_str(), 0);
+                readRows(own, frame, bands, first, end);
+            }
+        } catch (...) {
+            failures[std::size_t(reader)] = std::current_exception();
+        }
+    }
+    for (const std::exception_ptr& failure : failures)
+        if (failure) std::rethrow_exception(failure);
+}
+
 SampleFrame readFrameFile(const std::string& path, const SampleBandsFor* bandsFor) {
     checkMagic(path);
     checkExrHeader(path);  // before OpenEXR sizes any buffer from the header
     useExrWorkerThreads();
-    Imf::InputFile file(path.c_str());
+    // No worker threads of OpenEXR's own: readRowsInParallel() decodes on OpenMP's threads,
+    // each with its own file, so that one compression block per thread is buffered rather than
+    // two per OpenEXR thread in every file (about 45 MB each for a 1080p 4-spp PIZ frame).
+    Imf::InputFile file(path.c_str(), 0);
     const Imf::Header& header = file.header();
 
     const int version = intAttribute(header, attr::kVersion);
@@ -393,11 +455,10 @@ SampleFrame readFrameFile(const std::string& path, const SampleBandsFor* bandsFo
     for (const SampleBand& band : bands) {
         if (band.firstRow != nextRow || band.rows < 1 || band.firstRow + band.rows > height || !band.samples)
             throw Error("the sample bands to read into do not cover the frame's rows in order");
-        file.setFrameBuffer(frameBufferFor(frame, band));
-        file.readPixels(band.firstRow, band.firstRow + band.rows - 1);
         nextRow += band.rows;
     }
     if (nextRow != height) throw Error("the sample bands to read into do not cover the frame's rows");
+    readRowsInParallel(path, file, frame, bands);
 
     const std::string checksum = frameChecksum(frame, bands);
     if (checksum != storedChecksum) {

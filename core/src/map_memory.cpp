@@ -18,7 +18,7 @@ namespace {
 
 constexpr std::size_t kHugePage = std::size_t(2) << 20;
 // Smaller maps stay on the heap: a huge page would be mostly empty.
-constexpr std::size_t kHugePageFloats = 2 * kHugePage / sizeof(float);
+[[maybe_unused]] constexpr std::size_t kHugePageFloats = 2 * kHugePage / sizeof(float);
 
 std::size_t mappedBytes(std::size_t floats) { return (floats * sizeof(float) + kHugePage - 1) / kHugePage * kHugePage; }
 
