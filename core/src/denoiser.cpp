@@ -229,12 +229,10 @@ struct Denoiser::State {
     // back to the pool.
     void makeSignal(int spp);
     // The whole pipeline on a frame whose samples are all there (given, or lent by sampleBands()).
+    // `lent`, if given, holds the maps behind `samples`, given back to the pool once embedded.
     std::vector<float> denoiseWholeFrame(const SampleBands& samples, int height, const float* motion,
-                                         const float* valid, const FrameInfo& info, DenoiseReport* report);
-    void giveLentBands() {
-        for (FeatureMap& band : pending.lentBands) pool.give(band);
-        pending.lentBands.clear();
-    }
+                                         const float* valid, const FrameInfo& info, DenoiseReport* report,
+                                         std::vector<FeatureMap>* lent = nullptr);
     // Everything after the embedding and the signal to accumulate (in `signal`): history, U-Net,
     // filters. `local` already holds the embedding stage.
     std::vector<float> denoiseEmbedded(FeatureMap embedding, float depthScale, const FrameInfo& info,
@@ -510,7 +508,7 @@ std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport
 
 std::vector<float> Denoiser::State::denoiseWholeFrame(const SampleBands& samples, int height, const float* motion,
                                                       const float* valid, const FrameInfo& info,
-                                                      DenoiseReport* report) {
+                                                      DenoiseReport* report, std::vector<FeatureMap>* lent) {
     const Network& net = model.network();
     DenoiseReport local;
     StageClock clock(local);
@@ -526,7 +524,8 @@ std::vector<float> Denoiser::State::denoiseWholeFrame(const SampleBands& samples
         samples, height, depth, embedding, [&](long long firstPixel, int count, const float* sums) {
             signalFromSums(sums, count, spp, layout, signal.data() + std::size_t(firstPixel) * std::size_t(channels));
         });
-    giveLentBands();  // read: their memory serves the later stages (if they were lent)
+    if (lent)
+        for (FeatureMap& band : *lent) pool.give(band);  // read: their memory serves the later stages
     clock.mark("embedding");
     return denoiseEmbedded(std::move(embedding), depth, info, motion, valid, local, clock, report);
 }
@@ -540,7 +539,6 @@ std::vector<SampleBand> Denoiser::sampleBands(int width, int height, int spp) {
                     std::to_string(SampleFrame::kMaxSpp));
     if (p.spp > 0)
         throw Error("sampleBands: " + std::to_string(p.spp) + " samples wait for finishFrame() (or discardSamples())");
-    s.giveLentBands();  // left by a finishFrame() that failed
     // The bands are large maps among smaller ones: a free band serving a small map would leave
     // the next frame's bands to new memory. Measured at 1080p, 4 spp (bench_denoiser --lend 1),
     // peak RSS with the pool keeping maps over 2x / 3x / 6x the request for later: tiny 1290 /
@@ -600,13 +598,16 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
     if (p.spp == 0) throw Error("finishFrame: no samples were added with addSamples() or lent with sampleBands()");
     if (!motion || !valid) throw Error("finishFrame: the frame lacks a motion or validity buffer");
     if (!p.lentBands.empty()) {
-        SampleBands samples;
-        for (const FeatureMap& band : p.lentBands) samples.bands.push_back(band.data());
-        samples.bandRows = p.lentBands.front().height();
-        samples.width = p.width;
-        samples.spp = p.spp;
+        // Taken out of the pending state first: after a failure here nothing waits any more.
+        std::vector<FeatureMap> bands = std::move(p.lentBands);
+        p.lentBands.clear();
         p.spp = 0;
-        return s.denoiseWholeFrame(samples, p.height, motion, valid, info, report);
+        SampleBands samples;
+        for (const FeatureMap& band : bands) samples.bands.push_back(band.data());
+        samples.bandRows = bands.front().height();
+        samples.width = p.width;
+        samples.spp = bands.front().channels() / kFeatureCount;
+        return s.denoiseWholeFrame(samples, p.height, motion, valid, info, report, &bands);
     }
     const Network& net = s.model.network();
     DenoiseReport local;
@@ -634,7 +635,8 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
 
 void Denoiser::discardSamples() {
     state_->pending.spp = 0;
-    state_->giveLentBands();
+    for (FeatureMap& band : state_->pending.lentBands) state_->pool.give(band);
+    state_->pending.lentBands.clear();
     state_->pool.give(state_->pending.hiddenSum);
     state_->pool.give(state_->sampleSums);
 }

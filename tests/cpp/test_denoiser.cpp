@@ -505,4 +505,10 @@ TEST(DenoiserLentBands, MisuseIsAnErrorAndDiscardingStartsOver) {
     EXPECT_THROW(denoiser.sampleBands(8, 6, 2), Error);
     denoiser.discardSamples();
     EXPECT_EQ(lent(denoiser, frame), fresh.denoise(frame));
+    // A finishFrame() refused for a missing buffer leaves the lent frame waiting.
+    Denoiser again(randomModel()), reference(randomModel());
+    fillBands(again.sampleBands(8, 6, 2), frame);
+    EXPECT_THROW(again.finishFrame(nullptr, frame.valid().data(), frame.info), Error);
+    EXPECT_EQ(again.pending().spp, 2);
+    EXPECT_EQ(again.finishFrame(frame.motion().data(), frame.valid().data(), frame.info), reference.denoise(frame));
 }
