@@ -404,7 +404,6 @@ void readRowsInParallel(const std::string& path, Imf::InputFile& file, const Sam
 SampleFrame readFrameFile(const std::string& path, const SampleBandsFor* bandsFor) {
     checkMagic(path);
     checkExrHeader(path);  // before OpenEXR sizes any buffer from the header
-    useExrWorkerThreads();
     // No worker threads of OpenEXR's own: readRowsInParallel() decodes on OpenMP's threads,
     // each with its own file, so that one compression block per thread is buffered rather than
     // two per OpenEXR thread in every file (about 45 MB each for a 1080p 4-spp PIZ frame).
