@@ -149,6 +149,15 @@ class Denoiser:
         output, self.last_report = self._native.denoise(frame)
         return output
 
+    def denoise_file(self, path: str | os.PathLike[str]) -> tuple[Any, dict[str, Any]]:
+        """Reads a frame file and denoises it as the next frame of the sequence, the samples
+        read straight into memory the denoiser lends, so that they are never held beside all of
+        its buffers (what ``affinity denoise`` does). Returns the float32 (H, W, 3) output, bit
+        for bit ``denoise(read_frame(path))``, and the frame as ``read_frame`` gives it but with
+        "samples" None and "noisy", the per-pixel mean of the samples' radiance (H, W, 3)."""
+        output, self.last_report, frame = self._native.denoise_file(os.fspath(path))
+        return output, frame
+
     # Streaming: a frame's samples in batches, so that they are never held together (Blender
     # renders one sample per sub-render). The result is bit for bit ``denoise`` on the whole
     # frame, except that the depth normalisation comes from the first batch alone.

@@ -79,7 +79,10 @@ py::dict frameToDict(SampleFrame&& frame) {
     info["camera_to_clip"] = matrixArray(frame.info.cameraToClip);
 
     py::dict result;
-    result["samples"] = arrayOwning(std::move(frame.samples()), {h, w, spp, kFeatureCount});
+    // None for a frame whose samples were read elsewhere (Denoiser.denoise_file).
+    result["samples"] = frame.samples().empty()
+                            ? py::object(py::none())
+                            : py::object(arrayOwning(std::move(frame.samples()), {h, w, spp, kFeatureCount}));
     result["motion"] = arrayOwning(std::move(frame.motion()), {h, w, 2});
     result["valid"] = arrayOwning(std::move(frame.valid()), {h, w});
     result["reference"] = hasReference
@@ -363,6 +366,36 @@ PYBIND11_MODULE(_core, m) {
                                       reportDict(report));
             },
             py::arg("frame"))
+        .def(
+            "denoise_file",
+            [](Denoiser& self, const std::filesystem::path& path) {
+                if (self.pending().spp > 0)
+                    throw py::value_error("denoise_file: " + std::to_string(self.pending().spp) +
+                                          " samples added with add_samples() wait for finish_frame()");
+                SampleFrame frame;
+                DenoiseReport report;
+                std::vector<float> rgb, noisy;
+                {
+                    py::gil_scoped_release release;
+                    // The samples go straight into memory the denoiser lends (Denoiser::sampleBands).
+                    std::vector<SampleBand> bands;
+                    try {
+                        frame = readFrame(path.string(), [&](int width, int height, int spp) {
+                            return bands = self.sampleBands(width, height, spp);
+                        });
+                    } catch (...) {
+                        if (!bands.empty()) self.discardSamples();
+                        throw;
+                    }
+                    noisy = meanRadiance(bands, frame.width(), frame.height(), frame.spp());
+                    rgb = self.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, &report);
+                }
+                const py::ssize_t h = frame.height(), w = frame.width();
+                py::dict result = frameToDict(std::move(frame));
+                result["noisy"] = arrayOwning(std::move(noisy), {h, w, 3});
+                return py::make_tuple(arrayOwning(std::move(rgb), {h, w, 3}), reportDict(report), result);
+            },
+            py::arg("path"))
         .def(
             "add_samples",
             [](Denoiser& self, const py::handle& value) {

@@ -153,3 +153,46 @@ def test_streaming_misuse_names_the_problem(sequence: list[dict]) -> None:
     denoiser.discard_samples()
     assert denoiser.pending_samples == 0
     np.testing.assert_array_equal(denoiser.denoise(frame), affinity.Denoiser().denoise(frame))
+
+
+@pytest.fixture(scope="module")
+def frame_files(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
+    out = tmp_path_factory.mktemp("files") / "frames"
+    subprocess.run([str(CLI), "render", "--scene", "disocclusion", "--frames", "3", "--spp", "4", "--size", "36x24",
+                    "--reference-spp", "16", "--out", str(out)], check=True, capture_output=True, timeout=300)
+    return affinity.list_frame_files(out)
+
+
+def test_denoise_file_equals_denoising_the_read_frame(frame_files: list[str]) -> None:
+    from_files, from_frames = affinity.Denoiser(), affinity.Denoiser()
+    for path in frame_files:
+        expected = from_frames.denoise(affinity.read_frame(path))
+        got, frame = from_files.denoise_file(path)
+        np.testing.assert_array_equal(got, expected)
+        assert from_files.last_report["used_history"] == from_frames.last_report["used_history"]
+        assert from_files.pending_samples == 0
+        read = affinity.read_frame(path)
+        assert frame["samples"] is None
+        for key in ("motion", "valid", "reference"):
+            np.testing.assert_array_equal(frame[key], read[key])
+        assert frame["info"]["frame_index"] == read["info"]["frame_index"]
+        samples = read["samples"]
+        noisy = (samples[..., 0:3] + samples[..., 3:6]).mean(axis=2)
+        np.testing.assert_allclose(frame["noisy"], noisy, rtol=1e-6, atol=1e-7)
+
+
+def test_denoise_file_failures_leave_nothing_waiting(frame_files: list[str], tmp_path: pathlib.Path) -> None:
+    corrupt = tmp_path / "frame_0000.exr"
+    data = bytearray(pathlib.Path(frame_files[0]).read_bytes())
+    data[len(data) // 2] ^= 0xFF  # past the header: the samples are lent, then the read fails
+    corrupt.write_bytes(bytes(data))
+    denoiser = affinity.Denoiser()
+    with pytest.raises(affinity.Error, match="frame_0000.exr"):
+        denoiser.denoise_file(corrupt)
+    assert denoiser.pending_samples == 0
+    got, _ = denoiser.denoise_file(frame_files[0])
+    np.testing.assert_array_equal(got, affinity.Denoiser().denoise(affinity.read_frame(frame_files[0])))
+    denoiser.add_samples(affinity.read_frame(frame_files[1])["samples"])
+    with pytest.raises(ValueError, match="wait for finish_frame"):
+        denoiser.denoise_file(frame_files[1])
+    assert denoiser.pending_samples == 4
