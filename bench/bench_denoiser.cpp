@@ -1,7 +1,8 @@
 // The whole denoiser on one model at one frame size: milliseconds per frame (median over the
 // timed frames, the first frame excluded as it has no history), the median of every pipeline
-// stage, CPU seconds per frame, the convolution FLOP rate, and the process's peak memory
-// (input frame included). One model per process, so that peak memory is that model's.
+// stage, CPU seconds per frame, the convolution FLOP rate, the process's peak memory (input
+// frame included) and the denoiser's own buffers (DenoiseReport::bufferBytes). One model per
+// process, so that peak memory is that model's.
 //
 //   bench_denoiser [--model FILE.affw] [--size 1920x1080] [--spp 4] [--frames 6] [--threads N]
 //                  [--stream 1 | --lend 1]
@@ -121,6 +122,7 @@ int run(const Options& options) {
     std::vector<double> wall, cpu;
     std::map<std::string, std::vector<double>> stages;
     std::vector<std::string> stageOrder;
+    std::size_t bufferBytes = 0;  // the denoiser's own buffers after the last frame
     for (int i = 0; i < options.frames; ++i) {
         DenoiseReport report;
         if (options.lend)
@@ -139,6 +141,7 @@ int run(const Options& options) {
             output = denoiser.denoise(frame, &report);
         }
         const double ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
+        bufferBytes = report.bufferBytes;
         if (i == 0) continue;  // no history yet: not the steady state
         wall.push_back(ms);
         cpu.push_back(cpuSeconds() - cpuStart);
@@ -155,12 +158,13 @@ int run(const Options& options) {
     std::printf("{\"model\": \"%s\", \"parameters\": %lld, \"kflop_per_pixel\": %.1f, \"size\": \"%dx%d\", "
                 "\"spp\": %d, \"threads\": %d, \"timed_frames\": %zu, \"ms_per_frame\": %.1f, "
                 "\"ms_per_megapixel\": %.1f, \"cpu_seconds_per_frame\": %.3f, \"gflops_per_cpu_second\": %.1f, "
-                "\"peak_rss_mb\": %.0f, \"input_frame_mb\": %.0f, \"streamed\": %s, \"lent\": %s, \"stage_ms\": {",
+                "\"peak_rss_mb\": %.0f, \"buffer_mb\": %.0f, \"input_frame_mb\": %.0f, \"streamed\": %s, \"lent\": %s, "
+                "\"stage_ms\": {",
                 model.source().c_str(), static_cast<long long>(model.parameterCount()),
                 model.flopsPerPixel(options.spp) / 1000.0, options.width, options.height, options.spp,
                 omp_get_max_threads(), wall.size(), median(wall), median(wall) / (pixels / 1e6), median(cpu),
                 model.flopsPerPixel(options.spp) * pixels / median(cpu) / 1e9, double(usage.ru_maxrss) / 1024.0,
-                inputBytes / (1024.0 * 1024.0), options.stream ? "true" : "false", options.lend ? "true" : "false");
+                double(bufferBytes) / (1024.0 * 1024.0), inputBytes / (1024.0 * 1024.0), options.stream ? "true" : "false", options.lend ? "true" : "false");
     for (std::size_t i = 0; i < stageOrder.size(); ++i)
         std::printf("%s\"%s\": %.1f", i ? ", " : "", stageOrder[i].c_str(), median(stages[stageOrder[i]]));
     std::printf("}}\n");

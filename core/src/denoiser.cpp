@@ -710,6 +710,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
 
     std::vector<float> radiance(std::size_t(width) * std::size_t(height) * 3);
     radianceFromSignal(s.output, s.signalHistory, net.signalLayout(), radiance.data());
+    local.bufferBytes = s.pool.heldCapacity() * sizeof(float);
     if (report) *report = local;
     return radiance;
 }

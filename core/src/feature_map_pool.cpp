@@ -23,7 +23,9 @@ FeatureMap FeatureMapPool::take(int height, int width, int channels) {
         map = std::move(free_[pick]);
         free_.erase(free_.begin() + std::ptrdiff_t(pick));
     }
+    const std::size_t before = map.capacity();
     map.resize(height, width, channels);
+    heldCapacity_ += map.capacity() - before;
     return map;
 }
 

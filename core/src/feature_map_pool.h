@@ -22,10 +22,13 @@ public:
 
     // Floats held by free maps (for tests).
     std::size_t freeCapacity() const;
+    // Floats of every map the pool has made, lent or free (maps dropped elsewhere still count).
+    std::size_t heldCapacity() const { return heldCapacity_; }
 
 private:
     std::vector<FeatureMap> free_;
     std::size_t keepRatio_ = kKeepRatio;
+    std::size_t heldCapacity_ = 0;
 };
 
 }  // namespace affinity

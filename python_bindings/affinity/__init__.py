@@ -138,7 +138,8 @@ class Denoiser:
             all_kernels=ablation != "one_kernel",
         )
         #: What the last call did: invalid_radiance (NaN/Inf/negative values read as 0),
-        #: used_history, reset_reason, stage_ms (milliseconds per pipeline stage).
+        #: used_history, reset_reason, stage_ms (milliseconds per pipeline stage), buffer_bytes
+        #: (memory of the buffers the denoiser keeps between frames).
         self.last_report: dict[str, Any] = {}
 
     @property

@@ -273,6 +273,7 @@ py::dict reportDict(const DenoiseReport& report) {
     py::dict stages;
     for (const auto& [stage, ms] : report.stageMilliseconds) stages[py::str(stage)] = ms;
     info["stage_ms"] = stages;
+    info["buffer_bytes"] = report.bufferBytes;
     return info;
 }
 

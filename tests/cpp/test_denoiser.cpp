@@ -512,3 +512,26 @@ TEST(DenoiserLentBands, MisuseIsAnErrorAndDiscardingStartsOver) {
     EXPECT_EQ(again.pending().spp, 2);
     EXPECT_EQ(again.finishFrame(frame.motion().data(), frame.valid().data(), frame.info), reference.denoise(frame));
 }
+
+// What lending buys, in the denoiser's own accounting (deterministic, unlike the process's
+// memory): the lent input's memory is taken over by later maps, so the denoiser's buffers grow
+// by much less than the input it no longer needs the caller to hold, and stop growing. With the
+// built-in model they grow by 2.24 MB for a 5.53 MB input here, by 267 MiB for 570 at 1080p.
+TEST(DenoiserLentBands, TheBandsMemoryServesTheLaterMaps) {
+    auto frames = test::randomSequence(4, 160, 120, 4, 33);
+    Denoiser whole(Model::builtIn()), lending(Model::builtIn());
+    std::vector<std::size_t> wholeBytes, lentBytes;
+    for (const SampleFrame& frame : frames) {
+        DenoiseReport report;
+        (void)whole.denoise(frame, &report);
+        wholeBytes.push_back(report.bufferBytes);
+        (void)lent(lending, frame, &report);
+        lentBytes.push_back(report.bufferBytes);
+    }
+    const std::size_t input = frames[0].samples().size() * sizeof(float);
+    EXPECT_EQ(wholeBytes[3], wholeBytes[2]);
+    EXPECT_EQ(lentBytes[3], lentBytes[2]);
+    EXPECT_GT(wholeBytes[3], input);  // the maps are more memory than the input: room to reuse it
+    EXPECT_LT(double(lentBytes[3]), double(wholeBytes[3]) + 0.6 * double(input))
+        << "whole " << wholeBytes[3] << " lent " << lentBytes[3] << " input " << input;
+}

@@ -196,3 +196,15 @@ def test_denoise_file_failures_leave_nothing_waiting(frame_files: list[str], tmp
     with pytest.raises(ValueError, match="wait for finish_frame"):
         denoiser.denoise_file(frame_files[1])
     assert denoiser.pending_samples == 4
+
+
+def test_the_report_gives_the_memory_of_the_denoisers_buffers(frame_files: list[str]) -> None:
+    denoiser = affinity.Denoiser()
+    sizes = []
+    for path in frame_files:
+        denoiser.denoise_file(path)
+        sizes.append(denoiser.last_report["buffer_bytes"])
+    # More than the frame's own maps (36x24 pixels, 32 embedding channels, 4 bytes a float) and
+    # steady once the history exists.
+    assert sizes[1] > 36 * 24 * 32 * 4
+    assert sizes[2] == sizes[1]

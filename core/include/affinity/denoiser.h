@@ -3,6 +3,7 @@
 // back. It keeps the temporal state (accumulated embeddings and radiance, previous output
 // and affinity features) between calls; reset() forgets it, as at a camera cut. Single-frame
 // use is the same call on a fresh (or reset) denoiser.
+#include <cstddef>
 #include <memory>
 #include <string>
 #include <utility>
@@ -19,6 +20,9 @@ struct DenoiseReport {
     std::string resetReason;        // why history was dropped before this frame, if it was
     // Wall-clock milliseconds per pipeline stage, in pipeline order, for profiling.
     std::vector<std::pair<std::string, double>> stageMilliseconds;
+    // Bytes of the buffers the denoiser keeps after the frame (all its maps, in use or free for
+    // the next frame): its memory between frames, and at the peak of one but for transients.
+    std::size_t bufferBytes = 0;
 };
 
 // Parts of the trained pipeline switched off at inference, for the ablation rows of the
