@@ -87,8 +87,8 @@ void fillRandomSamples(float* samples, int width, int height, int spp, std::uint
 // A frame of `spp` random samples, or with none (spp 0) for a denoiser-lent buffer; a small
 // motion everywhere.
 SampleFrame randomFrame(int width, int height, int spp, std::uint32_t seed) {
-    SampleFrame frame(width, height, std::max(spp, 1), false);
-    if (spp == 0) std::vector<float>().swap(frame.samples());
+    SampleFrame frame =
+        spp > 0 ? SampleFrame(width, height, spp, false) : SampleFrame::withoutSamples(width, height, 1, false);
     frame.info.worldToCamera = {1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, -5, 0, 0, 0, 1};
     if (spp > 0) fillRandomSamples(frame.samples().data(), width, height, spp, seed);
     for (std::size_t i = 0; i < frame.pixelCount(); ++i) {

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "affinity/atomic_file.h"
+#include "affinity/denoise_file.h"
 #include "affinity/denoiser.h"
 #include "affinity/error.h"
 #include "affinity/frame_io.h"
@@ -60,17 +61,11 @@ int denoiseCommand(const std::vector<std::string>& args) {
     for (std::size_t i = 0; i < frames.size(); ++i) {
         // The samples go straight into memory the denoiser lends, which serves its later stages
         // once they are embedded: a frame's samples are not held beside all of its maps.
-        std::vector<SampleBand> bands;
-        const SampleFrame frame = readFrame(frames[i], [&](int width, int height, int spp) {
-            return bands = denoiser.sampleBands(width, height, spp);
-        });
-        const std::vector<float> noisy =
-            frame.hasReference() ? meanRadiance(bands, frame.width(), frame.height(), frame.spp()) : std::vector<float>();
-        const auto start = std::chrono::steady_clock::now();
         DenoiseReport report;
-        const std::vector<float> denoised =
-            denoiser.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, &report);
-        const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+        const DenoisedFile file = denoiseFrameFile(denoiser, frames[i], NoisyMean::WithReference, &report);
+        const double seconds = file.denoiseMilliseconds / 1e3;
+        const SampleFrame& frame = file.frame;
+        const std::vector<float>& denoised = file.denoised;
         totalSeconds += seconds;
         const int index = frame.info.frameIndex;
         writeRgbExr((out / numbered("denoised", index, "exr")).string(), frame.width(), frame.height(), denoised.data());
@@ -83,7 +78,7 @@ int denoiseCommand(const std::vector<std::string>& args) {
             std::fprintf(stderr, "\nwarning: %s: %lld NaN/Inf/negative radiance values read as 0\n", frames[i].c_str(),
                          report.invalidRadiance);
         if (frame.hasReference()) {
-            entry["noisy"] = errors(noisy, frame.reference());
+            entry["noisy"] = errors(file.noisy, frame.reference());
             entry["denoised"] = errors(denoised, frame.reference());
         }
         perFrame.push_back(entry);

@@ -682,7 +682,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     const int E = embedding.channels();
 
     // 3. Histories: warped previous state where valid, the current frame elsewhere.
-    FeatureMap historyEmbedding = s.pool.take(height, width, E);  // accumulated: the next frame's
+    FeatureMap historyEmbedding = s.pool.take(height, width, E);
     FeatureMap historySignal = s.pool.take(height, width, s.signal.channels());
     if (history) {
         warpBilinear(s.embeddingHistory, s.signalHistory, motion, historyEmbedding, historySignal);

@@ -18,7 +18,7 @@ struct DenseLayer {
 
 // A frame's per-sample features ([y][x][s][feature]) in bands of rows: rows
 // [i * bandRows, (i + 1) * bandRows) at bands[i], the last band possibly shorter. One band holds
-// a frame that is one buffer; a frame lent in bands (Denoiser::sampleBuffer) has several.
+// a frame that is one buffer; a frame lent in bands (Denoiser::sampleBands) has several.
 struct SampleBands {
     SampleBands() = default;
     SampleBands(const float* samples, int frameHeight, int frameWidth, int samplesPerPixel)

@@ -12,6 +12,7 @@
 #include <utility>
 #include <vector>
 
+#include "affinity/denoise_file.h"
 #include "affinity/denoiser.h"
 #include "affinity/error.h"
 #include "affinity/features.h"
@@ -373,28 +374,16 @@ PYBIND11_MODULE(_core, m) {
                 if (self.pending().spp > 0)
                     throw py::value_error("denoise_file: " + std::to_string(self.pending().spp) +
                                           " samples added with add_samples() wait for finish_frame()");
-                SampleFrame frame;
                 DenoiseReport report;
-                std::vector<float> rgb, noisy;
+                DenoisedFile file;
                 {
                     py::gil_scoped_release release;
-                    // The samples go straight into memory the denoiser lends (Denoiser::sampleBands).
-                    std::vector<SampleBand> bands;
-                    try {
-                        frame = readFrame(path.string(), [&](int width, int height, int spp) {
-                            return bands = self.sampleBands(width, height, spp);
-                        });
-                    } catch (...) {
-                        if (!bands.empty()) self.discardSamples();
-                        throw;
-                    }
-                    noisy = meanRadiance(bands, frame.width(), frame.height(), frame.spp());
-                    rgb = self.finishFrame(frame.motion().data(), frame.valid().data(), frame.info, &report);
+                    file = denoiseFrameFile(self, path.string(), NoisyMean::Always, &report);
                 }
-                const py::ssize_t h = frame.height(), w = frame.width();
-                py::dict result = frameToDict(std::move(frame));
-                result["noisy"] = arrayOwning(std::move(noisy), {h, w, 3});
-                return py::make_tuple(arrayOwning(std::move(rgb), {h, w, 3}), reportDict(report), result);
+                const py::ssize_t h = file.frame.height(), w = file.frame.width();
+                py::dict result = frameToDict(std::move(file.frame));
+                result["noisy"] = arrayOwning(std::move(file.noisy), {h, w, 3});
+                return py::make_tuple(arrayOwning(std::move(file.denoised), {h, w, 3}), reportDict(report), result);
             },
             py::arg("path"))
         .def(
