@@ -227,7 +227,9 @@ void ourUpsampledConv(benchmark::State& state, bool folded) {
 #if AFFINITY_BENCH_ONEDNN
 // blockedActivations: let oneDNN also pick the activations' layout (its blocked nChw8c on
 // AVX2), converting outside the timing: oneDNN at its best rather than on our layout.
-void oneDnnConv(benchmark::State& state, bool blockedActivations) {
+// bf16: activations and weights in bfloat16 (accumulation and bias in FP32), what lower precision
+// would buy where the CPU has AMX or AVX512-BF16; rel_diff_vs_ours then shows what it costs.
+void oneDnnConv(benchmark::State& state, bool blockedActivations, bool bf16) {
     using namespace dnnl;
     using tag = memory::format_tag;
     using dt = memory::data_type;
@@ -242,8 +244,9 @@ void oneDnnConv(benchmark::State& state, bool blockedActivations) {
         dstDims{1, out, kHeight, kWidth}, strides{1, 1}, padding{1, 1};
     // NHWC activations like ours; the weights' layout is oneDNN's choice (tag::any).
     const tag activationTag = blockedActivations ? tag::any : tag::nhwc;
-    const memory::desc srcDesc(srcDims, dt::f32, activationTag), dstDesc(dstDims, dt::f32, activationTag),
-        weightDesc(weightDims, dt::f32, tag::any), biasDesc(biasDims, dt::f32, tag::a);
+    const dt type = bf16 ? dt::bf16 : dt::f32;
+    const memory::desc srcDesc(srcDims, type, activationTag), dstDesc(dstDims, type, activationTag),
+        weightDesc(weightDims, type, tag::any), biasDesc(biasDims, dt::f32, tag::a);
     const convolution_forward::desc opDesc(prop_kind::forward_inference, algorithm::convolution_direct, srcDesc,
                                            weightDesc, biasDesc, dstDesc, strides, padding, padding);
     // The same fused leaky ReLU as ours.
@@ -251,7 +254,13 @@ void oneDnnConv(benchmark::State& state, bool blockedActivations) {
     ops.append_eltwise(1.0f, algorithm::eltwise_relu, 0.01f, 0.0f);
     primitive_attr attributes;
     attributes.set_post_ops(ops);
-    const convolution_forward::primitive_desc primitiveDesc(opDesc, attributes, cpu);
+    convolution_forward::primitive_desc primitiveDesc;
+    try {
+        primitiveDesc = convolution_forward::primitive_desc(opDesc, attributes, cpu);
+    } catch (const dnnl::error& e) {  // no bf16 convolution for this CPU
+        state.SkipWithError(e.what());
+        return;
+    }
     state.SetLabel(primitiveDesc.impl_info_str());
 
     memory userSrc({srcDims, dt::f32, tag::nhwc}, cpu, const_cast<float*>(c.input.data()));
@@ -380,8 +389,10 @@ void registerAll() {
         upsampled->ArgNames({"in", "out", "threads"})->UseRealTime()->Unit(benchmark::kMillisecond);
     }
 #if AFFINITY_BENCH_ONEDNN
-    addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_nhwc", oneDnnConv, false));
-    addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_blocked", oneDnnConv, true));
+    addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_nhwc", oneDnnConv, false, false));
+    addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_blocked", oneDnnConv, true, false));
+    addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_bf16_nhwc", oneDnnConv, false, true));
+    addShapes(benchmark::RegisterBenchmark("Conv3x3/onednn_bf16_blocked", oneDnnConv, true, true));
 #endif
 
     auto* embed = benchmark::RegisterBenchmark("Embedding1080p_4spp_18-32-32-32", embedding);
