@@ -38,8 +38,8 @@ def main() -> None:
     methods: list[str] = []
     spps: set[int] = set()
     reader = csv.DictReader(open(results_csv))
-    # Results of benchmarks older than the tone-mapped temporal error lack its column.
-    metrics = [m for m in ("smape", "psnr", "flip", "temporal_error", "temporal_error_tonemapped")
+    # Results of benchmarks older than the tone-mapped temporal error (or the warping error) lack its column.
+    metrics = [m for m in ("smape", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "warping_error")
                if m in (reader.fieldnames or [])]
     for row in reader:
         key = (row["method"], int(row["spp"]))
@@ -54,7 +54,8 @@ def main() -> None:
         v = [x for x in values.get((method, spp), {}).get(metric, []) if not math.isnan(x)]
         if not v:
             return "-"
-        return f"{sum(v) / len(v):.2f}" if metric == "psnr" else f"{sum(v) / len(v):.4f}"
+        digits = {"psnr": 2, "warping_error": 5}.get(metric, 4)
+        return f"{sum(v) / len(v):.{digits}f}"
 
     sequences = len(next(iter(values.values()))["smape"])
     print(f"Model ladder: mean over the benchmark's {sequences} sequences (7 bundled failure-case scenes and "
@@ -66,7 +67,7 @@ def main() -> None:
     header = ["method", "parameters", "kFLOP/px", "ms / 1080p frame"]
     for s in spp_list:
         headings = {"smape": "SMAPE", "psnr": "PSNR", "flip": "FLIP", "temporal_error": "temporal",
-                    "temporal_error_tonemapped": "temporal tone-mapped"}
+                    "temporal_error_tonemapped": "temporal tone-mapped", "warping_error": "warping"}
         header += [f"{headings[m]} {s}spp" for m in metrics]
     print("| " + " | ".join(header) + " |")
     print("|" + "---|" * len(header))

@@ -26,8 +26,27 @@ double relativeMse(const float* image, const float* reference, std::size_t n) {
     return n ? 0.5 * sum / double(n) : 0.0;
 }
 
+namespace {
+
+// The tone map of tonemappedPsnr and warpingError: negatives clamped to 0, then x / (1 + x).
+double tonemap(double x) {
+    x = std::max(x, 0.0);
+    return x / (1.0 + x);
+}
+
+// Whether pixel (x, y) counts in the temporal metrics: valid, and its warp target inside the grid
+// of pixel centres (so no bilinear tap is border-clamped; false for NaN motion too).
+bool countsInTemporalMetrics(int x, int y, const float* motion, const float* valid, int width, int height) {
+    const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
+    const float targetX = float(x) + motion[2 * p], targetY = float(y) + motion[2 * p + 1];
+    const bool inside =
+        targetX >= 0.0f && targetX <= float(width - 1) && targetY >= 0.0f && targetY <= float(height - 1);
+    return valid[p] >= 0.5f && inside;
+}
+
+}  // namespace
+
 double tonemappedPsnr(const float* image, const float* reference, std::size_t n) {
-    auto tonemap = [](double x) { x = std::max(x, 0.0); return x / (1.0 + x); };
     double sum = 0.0;
     for (std::size_t i = 0; i < n; ++i) {
         double d = tonemap(image[i]) - tonemap(reference[i]);
@@ -53,17 +72,42 @@ double temporalError(const float* output, const float* previousOutput, const flo
     std::size_t count = 0;
     for (int y = 0; y < height; ++y) {
         for (int x = 0; x < width; ++x) {
+            if (!countsInTemporalMetrics(x, y, motion, valid, width, height)) continue;
             const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
-            const float targetX = float(x) + motion[2 * p], targetY = float(y) + motion[2 * p + 1];
-            const bool inside = targetX >= 0.0f && targetX <= float(width - 1) && targetY >= 0.0f &&
-                                targetY <= float(height - 1);  // false for NaN motion too
-            if (!(valid[p] >= 0.5f) || !inside) continue;
             const float* warped = warpedError.pixel(y, x);
             for (int c = 0; c < 3; ++c) {
                 const double error = double(output[3 * p + c]) - reference[3 * p + c];
                 sum += std::abs(error - double(warped[c]));
             }
             count += 3;
+        }
+    }
+    return count ? sum / double(count) : kNoPixel;
+}
+
+double warpingError(const float* image, const float* previousImage, const float* motion, const float* valid,
+                    int width, int height) {
+    constexpr double kNoPixel = std::numeric_limits<double>::quiet_NaN();
+    if (width <= 0 || height <= 0) return kNoPixel;
+    // Tone-mapped before the warp: the flicker a viewer sees between the displayed frames.
+    FeatureMap previous(height, width, 3);
+    for (std::size_t i = 0; i < previous.size(); ++i) previous.data()[i] = float(tonemap(previousImage[i]));
+    FeatureMap warped;
+    warpBilinear(previous, motion, warped);
+
+    double sum = 0.0;
+    std::size_t count = 0;
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            if (!countsInTemporalMetrics(x, y, motion, valid, width, height)) continue;
+            const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
+            const float* before = warped.pixel(y, x);
+            for (int c = 0; c < 3; ++c) {
+                // Rounded to float like the warped side, so an unchanged still image gives exactly 0.
+                const double change = double(float(tonemap(image[3 * p + c]))) - double(before[c]);
+                sum += change * change;
+            }
+            ++count;
         }
     }
     return count ? sum / double(count) : kNoPixel;

@@ -1,7 +1,7 @@
 """Error metrics of the evaluation (ALGORITHM.md section 10), one definition each.
 
 Images are linear RGB float arrays of shape (H, W, 3) (any float dtype; converted to float32).
-SMAPE, relMSE, PSNR and the temporal error are the C++ functions of core (affinity/metrics.h),
+SMAPE, relMSE, PSNR, the temporal error and the warping error are the C++ functions of core (affinity/metrics.h),
 so the CLI's summaries, the training evaluation and the benchmark share one implementation;
 FLIP is NVIDIA's ꟻLIP through the ``flip-evaluator`` package.
 """
@@ -14,7 +14,7 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["smape", "relmse", "psnr", "temporal_error", "tonemapped_temporal_error", "flip", "ms_per_megapixel"]
+__all__ = ["smape", "relmse", "psnr", "temporal_error", "tonemapped_temporal_error", "warping_error", "flip", "ms_per_megapixel"]
 
 
 def smape(image: Any, reference: Any) -> float:
@@ -66,6 +66,19 @@ def tonemapped_temporal_error(
     """
     return _core.temporal_error(tonemap(output), tonemap(previous_output), tonemap(reference),
                                 tonemap(previous_reference), motion, valid)
+
+
+def warping_error(image: Any, previous_image: Any, motion: Any, valid: Any) -> float:
+    """Warping error of Lai et al. 2018: the flicker of a sequence on its own, no reference.
+
+    Mean over the pixels that ``temporal_error`` counts of the squared difference, summed over the
+    3 channels, between frame t and frame t-1 warped bilinearly by ``motion`` (H, W, 2), both
+    tone-mapped as for ``psnr`` (``tonemap``) first, so a pixel counts at most 3. Real changes of
+    the scene (moving shadows, highlights sliding over a surface) count too: a reference sequence
+    has a warping error of its own, the value a perfect denoiser would have. NaN when no pixel
+    counts. Lower is steadier.
+    """
+    return _core.warping_error(image, previous_image, motion, valid)
 
 
 def flip(image: Any, reference: Any) -> float:

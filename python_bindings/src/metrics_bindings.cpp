@@ -47,27 +47,42 @@ double pairMetric(const Image& image, const Image& reference) {
     return metric(image.data(), reference.data(), std::size_t(image.size()));
 }
 
+// `array` is (h, w, channels) float32.
+void requireSize(const Image& array, const char* name, py::ssize_t channels, py::ssize_t h, py::ssize_t w) {
+    requireImage(array, name, channels);
+    if (array.shape(0) != h || array.shape(1) != w)
+        throw py::value_error(std::string(name) + " has shape " + shapeText(array) + ", expected (" +
+                              std::to_string(h) + ", " + std::to_string(w) + ", " + std::to_string(channels) + ")");
+}
+
+// The motion (h, w, 2) and valid (h, w) maps of the temporal metrics.
+void requireMotionAndValid(const Image& motion, const Image& valid, py::ssize_t h, py::ssize_t w) {
+    requireSize(motion, "motion", 2, h, w);
+    if (valid.ndim() != 2 || valid.shape(0) != h || valid.shape(1) != w)
+        throw py::value_error("valid has shape " + shapeText(valid) + ", expected (" + std::to_string(h) + ", " +
+                              std::to_string(w) + ")");
+}
+
 double temporalErrorOf(const Image& output, const Image& previousOutput, const Image& reference,
                        const Image& previousReference, const Image& motion, const Image& valid) {
     requireImage(output, "output", 3);
     const py::ssize_t h = output.shape(0), w = output.shape(1);
-    const auto requireSize = [&](const Image& array, const char* name, py::ssize_t channels) {
-        requireImage(array, name, channels);
-        if (array.shape(0) != h || array.shape(1) != w)
-            throw py::value_error(std::string(name) + " has shape " + shapeText(array) + ", expected (" +
-                                  std::to_string(h) + ", " + std::to_string(w) + ", " +
-                                  std::to_string(channels) + ")");
-    };
-    requireSize(previousOutput, "previous_output", 3);
-    requireSize(reference, "reference", 3);
-    requireSize(previousReference, "previous_reference", 3);
-    requireSize(motion, "motion", 2);
-    if (valid.ndim() != 2 || valid.shape(0) != h || valid.shape(1) != w)
-        throw py::value_error("valid has shape " + shapeText(valid) + ", expected (" + std::to_string(h) + ", " +
-                              std::to_string(w) + ")");
+    requireSize(previousOutput, "previous_output", 3, h, w);
+    requireSize(reference, "reference", 3, h, w);
+    requireSize(previousReference, "previous_reference", 3, h, w);
+    requireMotionAndValid(motion, valid, h, w);
     if (h > 1 << 30 || w > 1 << 30) throw py::value_error("output is too large");
     return temporalError(output.data(), previousOutput.data(), reference.data(), previousReference.data(),
                          motion.data(), valid.data(), int(w), int(h));
+}
+
+double warpingErrorOf(const Image& image, const Image& previousImage, const Image& motion, const Image& valid) {
+    requireImage(image, "image", 3);
+    const py::ssize_t h = image.shape(0), w = image.shape(1);
+    requireSize(previousImage, "previous_image", 3, h, w);
+    requireMotionAndValid(motion, valid, h, w);
+    if (h > 1 << 30 || w > 1 << 30) throw py::value_error("image is too large");
+    return warpingError(image.data(), previousImage.data(), motion.data(), valid.data(), int(w), int(h));
 }
 
 }  // namespace
@@ -82,6 +97,8 @@ void bindMetrics(py::module_& m) {
     m.def("temporal_error", &temporalErrorOf, py::arg("output"), py::arg("previous_output"),
           py::arg("reference"), py::arg("previous_reference"), py::arg("motion"), py::arg("valid"),
           "Flicker relative to the reference's own change (see affinity.metrics.temporal_error).");
+    m.def("warping_error", &warpingErrorOf, py::arg("image"), py::arg("previous_image"), py::arg("motion"),
+          py::arg("valid"), "Warping error of Lai et al. 2018 (see affinity.metrics.warping_error).");
 }
 
 }  // namespace affinity

@@ -89,5 +89,32 @@ TEST(Metrics, TemporalErrorWarpsVertically) {
                 4.0, kTolerance);
 }
 
+double warpingErrorOf(const HalfPixelSequence& s) {
+    return warpingError(s.output.data(), s.previousOutput.data(), s.motion.data(), s.valid.data(), 3, 1);
+}
+
+TEST(Metrics, WarpingErrorTonemapsBeforeTheWarp) {
+    // Tone-mapped previous output (1/2, 3/4, 5/6); warped: x=0 (1/2 + 3/4)/2 = 5/8, x=1
+    // (3/4 + 5/6)/2 = 19/24; x=2 is outside. Current output 2 tone-maps to 2/3. Per pixel the
+    // squared difference summed over 3 channels: x=0 3 (1/24)^2, x=1 3 (1/8)^2; mean of the two.
+    // (Warping the linear image first would give x=0 no change at all.)
+    const double expected = (3.0 / (24.0 * 24.0) + 3.0 / 64.0) / 2.0;
+    EXPECT_NEAR(warpingErrorOf(HalfPixelSequence()), expected, 1e-7);
+}
+
+TEST(Metrics, WarpingErrorNeedsNoReferenceAndCountsLikeTheTemporalError) {
+    HalfPixelSequence s;
+    s.previousOutput = std::vector<float>(9, 2.0f);  // no change where the warp looks
+    EXPECT_NEAR(warpingErrorOf(s), 0.0, 1e-12);
+    s.previousOutput = std::vector<float>(9, -3.0f);  // negatives tone-map as 0
+    s.output = std::vector<float>(9, 0.0f);
+    EXPECT_NEAR(warpingErrorOf(s), 0.0, 1e-12);
+    HalfPixelSequence invalid;
+    invalid.valid[1] = 0.0f;  // only x=0 is left: 3 (1/24)^2
+    EXPECT_NEAR(warpingErrorOf(invalid), 3.0 / (24.0 * 24.0), 1e-7);
+    invalid.valid[0] = 0.0f;
+    EXPECT_TRUE(std::isnan(warpingErrorOf(invalid)));
+}
+
 }  // namespace
 }  // namespace affinity

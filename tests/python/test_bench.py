@@ -16,7 +16,8 @@ import affinity
 from affinity.bench import data, report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
-NUMERIC_COLUMNS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "ms_per_frame", "ms_per_mpx",
+NUMERIC_COLUMNS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "warping_error",
+                   "ms_per_frame", "ms_per_mpx",
                    "render_s_per_frame", "total_s_per_frame")
 
 
@@ -57,7 +58,7 @@ def test_every_method_ran_and_every_metric_is_finite(bench: tuple[pathlib.Path, 
     for row in read_rows(out / "per_frame.csv"):
         values = [row[c] for c in ("smape", "relmse", "psnr", "flip", "ms")]
         assert all(math.isfinite(float(v)) for v in values), row
-        for column in ("temporal_error", "temporal_error_tonemapped"):
+        for column in ("temporal_error", "temporal_error_tonemapped", "warping_error"):
             assert (row[column] == "nan") == (row["frame"] == "0"), row
 
 
@@ -69,6 +70,18 @@ def test_ours_beats_the_noisy_input_on_every_scene_at_every_spp(bench: tuple[pat
     assert {(r["sequence"], r["spp"]) for r in ours} == {(s, p) for s in ("glossy", "disocclusion") for p in ("2", "4")}
     for r in ours:
         assert float(r["smape"]) < noisy[(r["sequence"], r["spp"])], (r["method"], r["sequence"], r["spp"])
+
+
+def test_ours_flickers_less_than_the_noisy_input(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:
+    # The warping error needs no reference: the output against its own warped previous frame.
+    out, _, _ = bench
+    rows = read_rows(out / "results.csv")
+    noisy = {(r["sequence"], r["spp"]): float(r["warping_error"]) for r in rows if r["method"] == "noisy"}
+    for r in rows:
+        if r["method"] == "ours-small":
+            assert float(r["warping_error"]) < 0.5 * noisy[(r["sequence"], r["spp"])], (r["sequence"], r["spp"])
+    for r in read_rows(out / "reference_noise.csv"):  # a 64-spp reference flickers less than 2 spp
+        assert float(r["warping_error"]) < noisy[(r["sequence"], "2")], r
 
 
 def test_a_second_reference_measures_the_references_own_noise(bench: tuple[pathlib.Path, pathlib.Path, str]) -> None:

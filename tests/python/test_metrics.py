@@ -88,6 +88,31 @@ def test_tonemapped_temporal_error_by_hand() -> None:
     assert metrics.tonemapped_temporal_error(**shadow) == 0.0
 
 
+def test_warping_error_by_hand() -> None:
+    s = half_pixel_sequence()
+    # Tone-mapped previous output (1/2, 3/4, 5/6), warped: x=0 5/8, x=1 19/24; the output 2 tone-maps
+    # to 2/3. Squared differences summed over 3 channels, mean over the 2 counted pixels.
+    pair = {"image": s["output"], "previous_image": s["previous_output"], "motion": s["motion"], "valid": s["valid"]}
+    assert metrics.warping_error(**pair) == pytest.approx((3 / 24**2 + 3 / 8**2) / 2, rel=1e-5)
+    pair["valid"] = np.array([[0, 1, 1]], np.float32)  # x=1 alone
+    assert metrics.warping_error(**pair) == pytest.approx(3 / 8**2, rel=1e-5)
+    pair["valid"] = np.array([[0, 0, 1]], np.float32)  # x=2 looks outside: nothing counts
+    assert math.isnan(metrics.warping_error(**pair))
+    with pytest.raises(ValueError, match="previous_image"):
+        metrics.warping_error(s["output"], s["output"][:, :2], s["motion"], s["valid"])
+
+
+def test_warping_error_of_a_still_sequence_is_its_squared_tonemapped_change() -> None:
+    # No motion: the warp is the identity, so the error is the plain per-pixel change, computed
+    # here with numpy alone.
+    rng = np.random.default_rng(2)
+    before, after = rng.uniform(-0.5, 4, (5, 7, 3)).astype(np.float32), rng.uniform(-0.5, 4, (5, 7, 3)).astype(np.float32)
+    still, valid = np.zeros((5, 7, 2), np.float32), np.ones((5, 7), np.float32)
+    expected = np.mean(np.sum((metrics.tonemap(after) - metrics.tonemap(before)).astype(np.float64) ** 2, axis=2))
+    assert metrics.warping_error(after, before, still, valid) == pytest.approx(expected, rel=1e-5)
+    assert metrics.warping_error(after, after, still, valid) == 0.0
+
+
 def test_flip_is_zero_for_identical_images_and_grows_with_the_error() -> None:
     rng = np.random.default_rng(2)
     reference = rng.random((32, 32, 3), np.float32)

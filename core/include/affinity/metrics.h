@@ -22,4 +22,13 @@ double temporalError(const float* output, const float* previousOutput, const flo
                      const float* previousReference, const float* motion, const float* valid, int width,
                      int height);
 
+// Warping error of Lai et al. 2018 ("Learning Blind Video Temporal Consistency"), the flicker of
+// an image sequence on its own, without a reference: mean over the pixels that temporalError
+// counts of || T(I_t) - W T(I_{t-1}) ||^2, the squared difference summed over the 3 channels,
+// where T is the tone map of tonemappedPsnr (negatives clamped to 0, then x / (1 + x)) and W the
+// same bilinear warp by `motion`. Real changes of the scene count too, so a sequence's reference
+// has a warping error of its own: the value a perfect output would have. NaN when no pixel counts.
+double warpingError(const float* image, const float* previousImage, const float* motion, const float* valid,
+                    int width, int height);
+
 }  // namespace affinity

@@ -14,6 +14,9 @@ from affinity import metrics
 from .data import with_spp
 from .methods import Method
 
+#: Metrics of a frame against the frame before: NaN on the first frame, left out of the means.
+PAIR_METRICS = ("temporal_error", "temporal_error_tonemapped", "warping_error")
+
 #: Methods that also run at the equal-time chart's extra sample counts.
 EQUAL_TIME_METHODS = ("noisy", "oidn")
 
@@ -27,6 +30,7 @@ class FrameResult:
     flip: float
     temporal_error: float  # NaN on the first frame (no previous frame)
     temporal_error_tonemapped: float  # likewise
+    warping_error: float   # likewise (Lai et al. 2018: the output against its own previous frame)
     seconds: float         # wall time of the method's call on this frame (fastest of the timing runs)
 
 
@@ -45,7 +49,7 @@ class SequenceResult:
 
     def mean(self, metric: str) -> float:
         values = [getattr(f, metric) for f in self.frames]
-        if metric.startswith("temporal_error"):
+        if metric in PAIR_METRICS:
             values = [v for v in values[1:] if not np.isnan(v)]  # frames 2..N
         return float(np.mean(values)) if values else float("nan")
 
@@ -92,14 +96,15 @@ def measure(outputs: list[np.ndarray], seconds: list[float], frames: list[dict[s
     results = []
     for t, (output, frame) in enumerate(zip(outputs, frames)):
         reference = frame["reference"]
-        temporal = tonemapped_temporal = float("nan")
+        temporal = tonemapped_temporal = warping = float("nan")
         if t > 0:
             pair = (output, outputs[t - 1], reference, frames[t - 1]["reference"], frame["motion"], frame["valid"])
             temporal = metrics.temporal_error(*pair)
             tonemapped_temporal = metrics.tonemapped_temporal_error(*pair)
+            warping = metrics.warping_error(output, outputs[t - 1], frame["motion"], frame["valid"])
         results.append(FrameResult(t, metrics.smape(output, reference), metrics.relmse(output, reference),
                                    metrics.psnr(output, reference), metrics.flip(output, reference), temporal,
-                                   tonemapped_temporal, seconds[t]))
+                                   tonemapped_temporal, warping, seconds[t]))
     return results
 
 

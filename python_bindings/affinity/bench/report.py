@@ -28,9 +28,10 @@ SUMMARY_COLUMNS = (
     ("flip", "FLIP", "{:.4f}"),
     ("temporal_error", "temporal error", "{:.4f}"),
     ("temporal_error_tonemapped", "temporal error, tone-mapped", "{:.4f}"),
+    ("warping_error", "warping error", "{:.5f}"),
     ("ms_per_mpx", "ms/Mpx", "{:.0f}"),
 )
-METRICS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped")
+METRICS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "warping_error")
 
 
 # --- writing ---------------------------------------------------------------------------------
@@ -150,7 +151,8 @@ def reference_noise_markdown(noise: list[SequenceResult], reference_spp: int) ->
     text = (f"A second {reference_spp}-spp reference of every sequence, rendered with other random numbers, "
             "scored against the first exactly as a method's output is. The references are noisy too, so "
             "every method's error includes theirs: for a perfect output, about these values divided by the "
-            "square root of 2 (the errors of two independent references add in quadrature).\n\n")
+            "square root of 2 (the errors of two independent references add in quadrature). The warping error "
+            "is the second reference's own (it needs no reference): what a perfect output would score.\n\n")
     return text + markdown_table(["sequence"] + [h for _, h, _ in columns], rows)
 
 
