@@ -11,6 +11,7 @@
 #include "affinity_filter.h"
 #include "bilinear_warp.h"
 #include "band_schedule.h"
+#include "exposure.h"
 #include "fast_exp.h"
 #include "feature_map_pool.h"
 #include "filter_signal.h"
@@ -188,6 +189,8 @@ struct Denoiser::State {
     int lastWidth = 0, lastHeight = 0;
     Matrix4 lastWorldToCamera{};
     float lastMeanDepth = 0.0f;
+    // The sequence's exposure normalisation (exposure.h), 0 until a frame with light sets it.
+    float exposure = 0.0f;
     // Temporal state (docs/MODEL.md sections 3 and 7): the accumulated signal and the last
     // kernel's output, in the filtered signal's channels (filter_signal.h).
     FeatureMap embeddingHistory, signalHistory, output, lastFeatures;
@@ -202,11 +205,18 @@ struct Denoiser::State {
         std::vector<FeatureMap> lentBands;  // from the pool, (rows, width, spp x kFeatureCount) each
         int spp = 0, width = 0, height = 0;
         float depthScale = 0.0f;
+        float exposure = 1.0f;
         long long invalidRadiance = 0;
         double milliseconds = 0.0;
     } pending;
 
     State(Model m, DenoiserOptions o) : model(std::move(m)), options(o) {}
+    // Whether a frame of this size, camera and mean depth can use the history (the caller checks
+    // that there is one); if not, why (for DenoiseReport::resetReason).
+    bool historyApplies(int width, int height, const FrameInfo& info, float meanDepth, std::string& reason) const;
+    // The exposure for a frame's embedding: a new one from `samples` when the frame starts a
+    // sequence or none was found yet (frames so far black), else the sequence's.
+    float exposureFor(const SampleBands& samples, int height, bool startsSequence);
     // The U-Net up to the input of its last full-resolution convolution, which
     // parametersAndAccumulation() fuses with the head.
     UnetTail runUnet(const Network& net, const FeatureMap& embedding, const FeatureMap& historyEmbedding);
@@ -488,6 +498,26 @@ void Denoiser::State::filterInBands(const Network& net, const UnetTail& tail, co
     for (FeatureMap& map : between) pool.give(map);
 }
 
+bool Denoiser::State::historyApplies(int width, int height, const FrameInfo& info, float meanDepth,
+                                     std::string& reason) const {
+    double degrees = 0.0, distance = 0.0;
+    cameraChange(lastWorldToCamera, info.worldToCamera, degrees, distance);
+    if (width != lastWidth || height != lastHeight)
+        reason = "frame size changed";
+    else if (degrees > 45.0)
+        reason = "camera turned by " + std::to_string(int(degrees)) + " degrees";
+    else if (meanDepth > 0.0f && distance > 0.5 * std::max(meanDepth, lastMeanDepth))
+        reason = "camera moved by more than half the scene depth";
+    else
+        return true;
+    return false;
+}
+
+float Denoiser::State::exposureFor(const SampleBands& samples, int height, bool startsSequence) {
+    if (startsSequence || exposure <= 0.0f) exposure = exposureOf(samples, height);
+    return exposure > 0.0f ? exposure : 1.0f;
+}
+
 std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* report) {
     return denoise(frame.view("denoise"), report);
 }
@@ -514,6 +544,12 @@ std::vector<float> Denoiser::State::denoiseWholeFrame(const SampleBands& samples
     StageClock clock(local);
     // 1-2. Per-sample embedding averaged per pixel; the signal to accumulate and filter.
     const float depth = depthScale(samples, height);
+    std::string ignored;
+    // The sequence goes on (also in single-frame mode, which keeps the sequence's exposure).
+    const bool continues =
+        hasHistory && historyApplies(samples.width, height, info, depth > 0.0f ? 1.0f / depth : 0.0f, ignored);
+    const InputScales scales(depth, exposureFor(samples, height, !continues));
+    local.exposure = scales.exposure;
     FeatureMap embedding = pool.take(height, samples.width, net.embedding->outChannels());
     // The signal straight from each chunk's sample sums: a map of the sums would be the third
     // largest while the samples are held.
@@ -521,7 +557,7 @@ std::vector<float> Denoiser::State::denoiseWholeFrame(const SampleBands& samples
     signal = pool.take(height, samples.width, layout.channels());
     const int spp = samples.spp, channels = layout.channels();
     local.invalidRadiance = net.embedding->apply(
-        samples, height, depth, embedding, [&](long long firstPixel, int count, const float* sums) {
+        samples, height, scales, embedding, [&](long long firstPixel, int count, const float* sums) {
             signalFromSums(sums, count, spp, layout, signal.data() + std::size_t(firstPixel) * std::size_t(channels));
         });
     if (lent)
@@ -579,14 +615,19 @@ void Denoiser::addSamples(int width, int height, int spp, const float* samples) 
         s.pool.setKeepRatio(FeatureMapPool::kKeepRatio);
         p.width = width;
         p.height = height;
-        p.depthScale = depthScale(SampleBands(samples, height, width, spp), height);
+        const SampleBands batch(samples, height, width, spp);
+        p.depthScale = depthScale(batch, height);
+        // A camera cut shows only at finishFrame(): such a frame keeps the exposure before it.
+        const bool continues = s.hasHistory && width == s.lastWidth && height == s.lastHeight;
+        p.exposure = s.exposureFor(batch, height, !continues);
         p.invalidRadiance = 0;
         p.milliseconds = 0.0;
         p.hiddenSum = s.pool.take(height, width, net.embedding->hiddenChannels());
         s.sampleSums = s.pool.take(height, width, Embedding::kSampleSumChannels);
     }
     p.invalidRadiance +=
-        net.embedding->accumulate(samples, height, width, spp, p.depthScale, p.hiddenSum, first, &s.sampleSums);
+        net.embedding->accumulate(samples, height, width, spp, InputScales(p.depthScale, p.exposure), p.hiddenSum,
+                                  first, &s.sampleSums);
     p.spp += spp;
     p.milliseconds += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - start).count();
 }
@@ -625,6 +666,7 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
     }
     s.makeSignal(p.spp);
     local.invalidRadiance = p.invalidRadiance;
+    local.exposure = p.exposure;
     const float depth = p.depthScale;
     const double addMilliseconds = p.milliseconds;
     p.spp = 0;
@@ -661,17 +703,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     const int width = embedding.width(), height = embedding.height();
     // Drop history where it cannot apply.
     const float meanDepth = depthScale > 0.0f ? 1.0f / depthScale : 0.0f;
-    if (s.hasHistory) {
-        double degrees = 0.0, distance = 0.0;
-        cameraChange(s.lastWorldToCamera, info.worldToCamera, degrees, distance);
-        if (width != s.lastWidth || height != s.lastHeight)
-            local.resetReason = "frame size changed";
-        else if (degrees > 45.0)
-            local.resetReason = "camera turned by " + std::to_string(int(degrees)) + " degrees";
-        else if (meanDepth > 0.0f && distance > 0.5 * std::max(meanDepth, s.lastMeanDepth))
-            local.resetReason = "camera moved by more than half the scene depth";
-        if (!local.resetReason.empty()) s.hasHistory = false;
-    }
+    if (s.hasHistory && !s.historyApplies(width, height, info, meanDepth, local.resetReason)) s.hasHistory = false;
     s.lastWidth = width;
     s.lastHeight = height;
     s.lastWorldToCamera = info.worldToCamera;

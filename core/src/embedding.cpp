@@ -29,17 +29,18 @@ Vec8f load8(const float* p) {
 
 // The input transform of MODEL.md section 1 for `count` consecutive samples into `input`
 // ([count][18]): non-finite values read as 0, radiance (features 0-5) also where negative and
-// then as log(1 + r), depth times depthScale. The sanitised linear radiance goes to `radiance`
+// then as log(1 + exposure r), depth times the depth scale. The sanitised linear radiance goes to `radiance`
 // ([count][6] + 2 floats of padding) for the sample sums. One pass, a sample at a time in
 // 8-lane pieces (features 0-7, 8-15, then 16-17). Returns how many radiance values were
 // non-finite or negative.
-long long prepareSamples(const float* samples, int count, float depthScale, float* input, float* radiance) {
+long long prepareSamples(const float* samples, int count, InputScales scales, float* input, float* radiance) {
     static_assert(kFeatureCount == 18 && channel::kDepth == 9, "the lanes below follow features.h");
     auto store = [](float* p, Vec8f v) { std::memcpy(p, &v, sizeof v); };
     auto finiteOrZero = [](float v) { return std::fabs(v) <= 3.40282347e38f ? v : 0.0f; };
     const Vec8f largest = broadcast8(3.40282347e38f);
     const Vec8i isRadiance = Vec8i{0, 1, 2, 3, 4, 5, 6, 7} < kRadianceChannels;
-    const Vec8f depthFactor = Vec8f{1.0f, depthScale, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
+    const Vec8f depthFactor = Vec8f{1.0f, scales.depth, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
+    const Vec8f exposure = broadcast8(scales.exposure);
     Vec8i bad{};
     for (int s = 0; s < count; ++s) {
         const float* raw = samples + std::size_t(s) * kFeatureCount;
@@ -57,7 +58,9 @@ long long prepareSamples(const float* samples, int count, float depthScale, floa
         bad -= isRadiance & ~lowOk;  // a true comparison is -1
         const Vec8f lowClean = lowOk ? low : Vec8f{};
         store(radiance + std::size_t(s) * kRadianceChannels, lowClean);  // lanes 6-7: padding, overwritten next
-        store(in, isRadiance ? log1pNonNegative8(isRadiance ? lowClean : Vec8f{}) : lowClean);
+        const Vec8f exposed = lowClean * exposure;  // kept finite: log1p needs it
+        const Vec8f finiteExposed = exposed <= largest ? exposed : largest;
+        store(in, isRadiance ? log1pNonNegative8(isRadiance ? finiteExposed : Vec8f{}) : lowClean);
         store(in + 8, (highOk ? high : Vec8f{}) * depthFactor);
         in[16] = finiteOrZero(raw[16]);
         in[17] = finiteOrZero(raw[17]);
@@ -164,7 +167,7 @@ int Embedding::hiddenChannels() const {
 }
 
 template <class Consume>
-long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, float depthScale,
+long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, InputScales scales,
                                   FeatureMap* sampleSums, bool firstSums, const SumsSink* sink,
                                   Consume consume) const {
     const int spp = samples.spp;
@@ -191,7 +194,7 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
             const int count = int(std::min<long long>(chunkPixels, pixels - p0));
             const int n = count * spp;
             const float* chunkInput = samples.pixels(p0, count, gather.data());
-            bad += prepareSamples(chunkInput, n, depthScale, input.data(), radiance.data());
+            bad += prepareSamples(chunkInput, n, scales, input.data(), radiance.data());
             if (sampleSums) {
                 addSampleSums(chunkInput, radiance.data(), count, spp, firstSums,
                               sampleSums->data() + std::size_t(p0) * kSampleSumChannels);
@@ -227,17 +230,17 @@ const float* SampleBands::pixels(long long first, int count, float* gather) cons
     return gather;
 }
 
-long long Embedding::apply(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+long long Embedding::apply(const SampleBands& samples, int height, InputScales scales, FeatureMap& output,
                            FeatureMap* sampleSums) const {
-    return applyChunks(samples, height, depthScale, output, sampleSums, nullptr);
+    return applyChunks(samples, height, scales, output, sampleSums, nullptr);
 }
 
-long long Embedding::apply(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+long long Embedding::apply(const SampleBands& samples, int height, InputScales scales, FeatureMap& output,
                            const SumsSink& sink) const {
-    return applyChunks(samples, height, depthScale, output, nullptr, &sink);
+    return applyChunks(samples, height, scales, output, nullptr, &sink);
 }
 
-long long Embedding::applyChunks(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+long long Embedding::applyChunks(const SampleBands& samples, int height, InputScales scales, FeatureMap& output,
                                  FeatureMap* sampleSums, const SumsSink* sink) const {
     const int width = samples.width, spp = samples.spp;
     if (height < 0 || width < 0 || spp <= 0)
@@ -253,7 +256,7 @@ long long Embedding::applyChunks(const SampleBands& samples, int height, float d
     // per sample (the same function up to float rounding, and S times fewer operations there).
     const int channels = hiddenChannels();
     const float inverseSpp = 1.0f / float(spp);
-    return forEachChunk(samples, pixels, depthScale, sampleSums, true, sink,
+    return forEachChunk(samples, pixels, scales, sampleSums, true, sink,
                         [&](long long p0, int count, const float* hidden, float* mean) {
                             // Mean over each pixel's samples, added in sample order.
                             for (int p = 0; p < count; ++p)
@@ -266,7 +269,7 @@ long long Embedding::applyChunks(const SampleBands& samples, int height, float d
                         });
 }
 
-long long Embedding::accumulate(const float* samples, int height, int width, int spp, float depthScale,
+long long Embedding::accumulate(const float* samples, int height, int width, int spp, InputScales scales,
                                 FeatureMap& hiddenSum, bool first, FeatureMap* sampleSums) const {
     if (height < 0 || width < 0 || spp <= 0)
         throw Error("Embedding: bad frame size " + std::to_string(height) + "x" + std::to_string(width) + " with " +
@@ -284,7 +287,7 @@ long long Embedding::accumulate(const float* samples, int height, int width, int
     const long long pixels = (long long)height * width;
     if (pixels == 0) return 0;
     // The same additions in the same order as apply()'s mean, without the final scaling.
-    return forEachChunk(SampleBands(samples, height, width, spp), pixels, depthScale, sampleSums, first, nullptr,
+    return forEachChunk(SampleBands(samples, height, width, spp), pixels, scales, sampleSums, first, nullptr,
                         [&](long long p0, int count, const float* hidden, float*) {
                             for (int p = 0; p < count; ++p) {
                                 float* m = hiddenSum.data() + (std::size_t(p0) + std::size_t(p)) * channels;

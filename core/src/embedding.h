@@ -35,6 +35,14 @@ struct SampleBands {
     const float* pixels(long long first, int count, float* gather) const;
 };
 
+// The per-frame scales of the input transform (docs/MODEL.md section 1): depth times `depth`,
+// radiance times `exposure` before log(1 + r). From a float: a depth scale at exposure 1.
+struct InputScales {
+    InputScales(float depthScale, float exposureScale = 1.0f) : depth(depthScale), exposure(exposureScale) {}
+    float depth;
+    float exposure;
+};
+
 class Embedding {
 public:
     // Validates the chain: at least one layer, the first takes kFeatureCount inputs, each
@@ -51,23 +59,23 @@ public:
     static constexpr int kSumDiffuse = 0, kSumSpecular = 3, kSumAlbedo = 6, kSumEmittedDiffuse = 9,
                          kSumEmittedSpecular = 12;
 
-    // samples: [pixels][spp][kFeatureCount] raw features (frame layout); depthScale from
+    // samples: [pixels][spp][kFeatureCount] raw features (frame layout); scales from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).
     // Non-finite or negative radiance is treated as 0; returns how many radiance values were.
     // With `sampleSums`, also writes the sums above (height x width x kSampleSumChannels).
     // Multithreaded; the result does not depend on the thread count.
-    long long apply(const float* samples, int height, int width, int spp, float depthScale,
+    long long apply(const float* samples, int height, int width, int spp, InputScales scales,
                     FeatureMap& output, FeatureMap* sampleSums = nullptr) const {
-        return apply(SampleBands(samples, height, width, spp), height, depthScale, output, sampleSums);
+        return apply(SampleBands(samples, height, width, spp), height, scales, output, sampleSums);
     }
     // The same on samples in bands of rows: the same result bit for bit.
-    long long apply(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+    long long apply(const SampleBands& samples, int height, InputScales scales, FeatureMap& output,
                     FeatureMap* sampleSums = nullptr) const;
     // The same with the sums handed chunk by chunk to sink(first pixel, pixel count, the chunk's
     // sums, kSampleSumChannels per pixel), called from the worker threads, so that they need
     // not be kept for the whole frame.
     using SumsSink = std::function<void(long long firstPixel, int count, const float* sums)>;
-    long long apply(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+    long long apply(const SampleBands& samples, int height, InputScales scales, FeatureMap& output,
                     const SumsSink& sink) const;
 
     // apply() in two steps, for samples that arrive in batches: accumulate() adds each sample's
@@ -76,7 +84,7 @@ public:
     // to hiddenSum / spp. Batches
     // added in sample order give apply()'s result bit for bit (the last layer is linear, so the
     // mean can be taken before it). accumulate() returns the bad radiance count as apply().
-    long long accumulate(const float* samples, int height, int width, int spp, float depthScale,
+    long long accumulate(const float* samples, int height, int width, int spp, InputScales scales,
                          FeatureMap& hiddenSum, bool first, FeatureMap* sampleSums = nullptr) const;
     // `output` may be `hiddenSum` itself when outChannels() == hiddenChannels(): the embedding
     // then takes the sums' memory instead of a second map (each chunk is read before written).
@@ -91,9 +99,9 @@ private:
     // When sampleSums is given, the chunk's sums go into it (started at 0 if firstSums); else
     // when sink is, to it.
     template <class Consume>
-    long long forEachChunk(const SampleBands& samples, long long pixels, float depthScale,
+    long long forEachChunk(const SampleBands& samples, long long pixels, InputScales scales,
                            FeatureMap* sampleSums, bool firstSums, const SumsSink* sink, Consume consume) const;
-    long long applyChunks(const SampleBands& samples, int height, float depthScale, FeatureMap& output,
+    long long applyChunks(const SampleBands& samples, int height, InputScales scales, FeatureMap& output,
                           FeatureMap* sampleSums, const SumsSink* sink) const;
 
     std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples

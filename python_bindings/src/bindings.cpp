@@ -271,6 +271,7 @@ py::dict reportDict(const DenoiseReport& report) {
     info["invalid_radiance"] = report.invalidRadiance;
     info["used_history"] = report.usedHistory;
     info["reset_reason"] = report.resetReason;
+    info["exposure"] = report.exposure;
     py::dict stages;
     for (const auto& [stage, ms] : report.stageMilliseconds) stages[py::str(stage)] = ms;
     info["stage_ms"] = stages;

@@ -26,8 +26,9 @@ Model randomModel(unsigned seed, bool albedoDemodulation) {
 }
 
 // A model that cannot see history: lambda = 0, the U-Net's history input channels zeroed and
-// (by default) a huge temporal bandwidth, which leaves no weight on the temporal taps.
-Model historyBlindModel(unsigned seed, float temporalBias = 1e4f) {
+// (by default) a huge temporal bandwidth, which leaves no weight on the temporal taps (1e6: at
+// 1e4, features 3e-4 apart still weighed enough to move an output by 1e-5).
+Model historyBlindModel(unsigned seed, float temporalBias = 1e6f) {
     auto tensors = test::randomModelTensors(test::ModelShape{}, seed, -1e4f, temporalBias);
     const int embedding = test::ModelShape{}.embedding.back();
     for (auto& t : tensors)
@@ -167,8 +168,26 @@ TEST(Denoiser, ResetForgetsHistory) {
 
 // With lambda = 0 (no accumulation), a huge temporal bandwidth (no temporal taps) and a U-Net
 // blind to its history input, frame 2 is denoised exactly as if it were alone.
+// The frames with frame 0's radiance, shifted along each row by 5 pixels per frame: a sequence
+// keeps the exposure of its first frame (docs/MODEL.md section 1), so a later frame denoised alone
+// has the same exposure only if its radiance is frame 0's over every square of the exposure key
+// (frames of at most 16x16 pixels are one square). Shifted, so that no pixel's features repeat
+// frame 0's (the temporal taps of a history-blind model weigh only exact repeats).
+std::vector<SampleFrame> withTheFirstFramesRadiance(std::vector<SampleFrame> frames) {
+    for (std::size_t t = 1; t < frames.size(); ++t) {
+        const int width = frames[t].width(), shift = int(5 * t) % width;
+        EXPECT_LE(std::max(width, frames[t].height()), kExposureBin);
+        for (int y = 0; y < frames[t].height(); ++y)
+            for (int x = 0; x < width; ++x)
+                for (int s = 0; s < frames[t].spp(); ++s)
+                    std::copy_n(frames[0].sample((x + shift) % width, y, s) + channel::kDiffuse, 6,
+                                frames[t].sample(x, y, s) + channel::kDiffuse);
+    }
+    return frames;
+}
+
 TEST(Denoiser, LambdaZeroEqualsSingleFrameDenoising) {
-    auto frames = test::randomSequence(2, 12, 10, 2, 6);
+    auto frames = withTheFirstFramesRadiance(test::randomSequence(2, 12, 10, 2, 6));
     Denoiser sequence(historyBlindModel(2)), single(historyBlindModel(2));
     sequence.denoise(frames[0]);
     EXPECT_LT(maxRelativeDifference(sequence.denoise(frames[1]), single.denoise(frames[1])), 1e-6);
@@ -187,7 +206,7 @@ Model identityFirstKernelsModel(unsigned seed) {
 }
 
 TEST(DenoiserAblation, SingleFrameDenoisesEveryFrameAlone) {
-    auto frames = test::randomSequence(3, 12, 10, 2, 8);
+    auto frames = withTheFirstFramesRadiance(test::randomSequence(3, 12, 10, 2, 8));
     Denoiser ablated(randomModel(), DenoiserOptions{.useHistory = false}), fresh(randomModel()), full(randomModel());
     ablated.denoise(frames[0]);
     full.denoise(frames[0]);
@@ -201,7 +220,7 @@ TEST(DenoiserAblation, SingleFrameDenoisesEveryFrameAlone) {
 // Without accumulation, the temporal kernel is the only way history reaches the output: turning
 // it off must give exactly the single-frame result, and leaving it on must not.
 TEST(DenoiserAblation, NoTemporalKernelRemovesTheOnlyHistoryPathOfANonAccumulatingModel) {
-    auto frames = test::randomSequence(2, 12, 10, 2, 9);
+    auto frames = withTheFirstFramesRadiance(test::randomSequence(2, 12, 10, 2, 9));
     Denoiser withKernel(historyBlindModel(3, 0.0f)), withoutKernel(historyBlindModel(3, 0.0f), {.temporalKernel = false}),
         single(historyBlindModel(3, 0.0f));
     withKernel.denoise(frames[0]);
@@ -351,12 +370,78 @@ std::vector<float> streamed(Denoiser& denoiser, const SampleFrame& frame, const 
 
 // Every sample of a pixel at sample 0's depth makes the first batch's depth normalisation the
 // whole frame's, and then streaming must be the same function bit for bit, whatever the batches.
-TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
-    auto frames = test::randomSequence(3, 17, 11, 4, 21);
+// Every sample's radiance (diffuse and specular) times `factor`.
+std::vector<SampleFrame> scaledRadiance(std::vector<SampleFrame> frames, float factor) {
     for (SampleFrame& f : frames)
         for (int y = 0; y < f.height(); ++y)
             for (int x = 0; x < f.width(); ++x)
-                for (int s = 1; s < f.spp(); ++s) f.sample(x, y, s)[channel::kDepth] = f.sample(x, y, 0)[channel::kDepth];
+                for (int s = 0; s < f.spp(); ++s)
+                    for (int c = 0; c < 6; ++c) f.sample(x, y, s)[channel::kDiffuse + c] *= factor;
+    return frames;
+}
+
+// The exposure normalisation makes the denoiser equivariant to the scene's brightness: radiance
+// 100x (or 1/100) gives the output 100x (1/100) up to float rounding, at every frame. Without
+// it the network would see log(1 + 100 r) instead of log(1 + r): another input altogether.
+TEST(DenoiserExposure, ScalingTheRadianceScalesTheOutput) {
+    const auto frames = test::randomSequence(3, 21, 13, 2, 31);
+    for (const float factor : {100.0f, 0.01f}) {
+        Denoiser plain(randomModel(5)), scaled(randomModel(5));
+        const auto brighter = scaledRadiance(frames, factor);
+        for (std::size_t t = 0; t < frames.size(); ++t) {
+            DenoiseReport plainReport, scaledReport;
+            std::vector<float> expected = plain.denoise(frames[t], &plainReport);
+            for (float& v : expected) v *= factor;
+            EXPECT_LT(maxRelativeDifference(scaled.denoise(brighter[t], &scaledReport), expected), 1e-4)
+                << "factor " << factor << " frame " << t;
+            EXPECT_NEAR(scaledReport.exposure * factor, plainReport.exposure, 1e-5 * plainReport.exposure);
+        }
+    }
+}
+
+TEST(DenoiserExposure, TheFirstFrameOfASequenceSetsIt) {
+    auto frames = test::randomSequence(3, 16, 16, 1, 32);
+    frames[1] = scaledRadiance({frames[1]}, 10.0f)[0];
+    frames[2] = scaledRadiance({frames[0]}, 10.0f)[0];  // frame 0, 10x brighter
+    Denoiser denoiser(randomModel(6));
+    DenoiseReport first, second, afterReset;
+    denoiser.denoise(frames[0], &first);
+    denoiser.denoise(frames[1], &second);
+    EXPECT_GT(first.exposure, 0.0f);
+    EXPECT_EQ(second.exposure, first.exposure);  // kept, although frame 1 is 10x brighter
+    denoiser.reset();
+    denoiser.denoise(frames[2], &afterReset);
+    // A new sequence: frame 0 10x brighter, so a tenth of its exposure.
+    EXPECT_NEAR(afterReset.exposure / first.exposure, 0.1f, 1e-6f);
+}
+
+TEST(DenoiserExposure, BlackFramesLeaveItToTheFirstFrameWithLight) {
+    auto frames = test::randomSequence(2, 16, 16, 1, 33);
+    frames[0] = scaledRadiance({frames[0]}, 0.0f)[0];
+    Denoiser denoiser(randomModel(7)), fresh(randomModel(7));
+    DenoiseReport black, lit, alone;
+    EXPECT_TRUE(allFinite(denoiser.denoise(frames[0], &black)));
+    denoiser.denoise(frames[1], &lit);
+    fresh.denoise(frames[1], &alone);
+    EXPECT_EQ(black.exposure, 1.0f);
+    EXPECT_EQ(lit.exposure, alone.exposure);
+    EXPECT_NE(lit.exposure, 1.0f);
+}
+
+TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
+    auto frames = test::randomSequence(3, 17, 11, 4, 21);
+    // The depth scale comes from the first batch of every frame, the exposure from the first
+    // batch of the sequence: make those the whole frames' too.
+    for (std::size_t t = 0; t < frames.size(); ++t) {
+        SampleFrame& f = frames[t];
+        for (int y = 0; y < f.height(); ++y)
+            for (int x = 0; x < f.width(); ++x)
+                for (int s = 1; s < f.spp(); ++s) {
+                    f.sample(x, y, s)[channel::kDepth] = f.sample(x, y, 0)[channel::kDepth];
+                    if (t == 0)
+                        for (int c = 0; c < 6; ++c) f.sample(x, y, s)[channel::kDiffuse + c] = f.sample(x, y, 0)[channel::kDiffuse + c];
+                }
+    }
     const std::vector<std::vector<int>> batchings = {{1, 1, 2}, {1, 1, 1, 1}, {4}};
     for (const bool demodulated : {false, true}) {
         Denoiser whole(randomModel(3, demodulated)), stream(randomModel(3, demodulated));

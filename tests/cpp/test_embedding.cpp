@@ -15,6 +15,7 @@
 #include "affinity/error.h"
 #include "affinity/features.h"
 #include "embedding.h"
+#include "exposure.h"
 #include "fast_log1p.h"
 
 namespace affinity {
@@ -262,6 +263,64 @@ TEST(Embedding, DepthIsScaled) {
     FeatureMap output;
     embedding.apply(samples.data(), 1, 1, 2, 0.25f, output);
     EXPECT_FLOAT_EQ(output.data()[0], 5.0f);
+}
+
+TEST(Embedding, TheExposureScalesTheRadianceBeforeTheLog) {
+    // Radiance times e at exposure 1 is radiance at exposure e, bit for bit (the same product).
+    std::mt19937 rng(9);
+    const Embedding embedding(randomLayers({18, 16, 8}, rng));
+    const int height = 5, width = 7, spp = 2;
+    std::uniform_real_distribution<float> u(0.0f, 3.0f);
+    std::vector<float> samples(std::size_t(height) * width * spp * kFeatureCount), scaled;
+    for (float& v : samples) v = u(rng);
+    scaled = samples;
+    const float exposure = 0.37f;
+    for (std::size_t i = 0; i < scaled.size(); i += kFeatureCount)
+        for (int c = 0; c < 6; ++c) scaled[i + std::size_t(channel::kDiffuse + c)] *= exposure;
+    FeatureMap a, b;
+    embedding.apply(samples.data(), height, width, spp, InputScales(0.2f, exposure), a);
+    embedding.apply(scaled.data(), height, width, spp, 0.2f, b);
+    EXPECT_TRUE(std::equal(a.data(), a.data() + a.size(), b.data()));
+    // A huge exposure saturates at log(1 + FLT_MAX) instead of overflowing.
+    embedding.apply(samples.data(), height, width, spp, InputScales(0.2f, 1e38f), a);
+    EXPECT_TRUE(std::all_of(a.data(), a.data() + a.size(), [](float v) { return std::isfinite(v); }));
+}
+
+// A frame (height x width x 1 sample) whose pixels have grey diffuse radiance value(x, y).
+template <class Value>
+std::vector<float> greyFrame(int height, int width, Value value) {
+    std::vector<float> samples(std::size_t(height) * width * kFeatureCount, 0.0f);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x)
+            for (int c = 0; c < 3; ++c)
+                samples[(std::size_t(y) * width + x) * kFeatureCount + std::size_t(channel::kDiffuse + c)] = value(x, y);
+    return samples;
+}
+
+TEST(Exposure, KeyIsTheGeometricMeanOfTheSquaresByHand) {
+    // Two 16x16 squares, grey 0.5 and 2 (luminance weights sum to 1): key sqrt(0.5 * 2) = 1.
+    // Only every 4th row is read: the other rows hold 1000, which must not count.
+    const auto samples = greyFrame(16, 32, [](int x, int y) { return y % 4 ? 1000.0f : (x < 16 ? 0.5f : 2.0f); });
+    EXPECT_NEAR(exposureOf(SampleBands(samples.data(), 16, 32, 1), 16), kExposureKey / 1.0, 1e-6);
+    // Partial squares average the pixels they have: a 20x18 frame, 4 squares, each uniform.
+    const auto partial = greyFrame(18, 20, [](int x, int y) { return (x < 16 ? 1.0f : 4.0f) * (y < 16 ? 1.0f : 9.0f); });
+    // Squares 1, 4, 9 and 36: key (1 * 4 * 9 * 36)^(1/4) = 1296^(1/4) = 6.
+    EXPECT_NEAR(exposureOf(SampleBands(partial.data(), 18, 20, 1), 18), kExposureKey / 6.0, 1e-6);
+}
+
+TEST(Exposure, DarkSquaresBadRadianceAndBlackFrames) {
+    // Squares of 1, 1, 1 and 1e-5 (under 1e-4 of the mean square, 0.75): the dark one is left
+    // out, key 1. NaN, Inf and negative radiance read as 0.
+    auto samples = greyFrame(32, 32, [](int x, int y) { return x >= 16 && y >= 16 ? 1e-5f : 1.0f; });
+    EXPECT_NEAR(exposureOf(SampleBands(samples.data(), 32, 32, 1), 32), kExposureKey, 1e-6);
+    samples[channel::kDiffuse] = std::numeric_limits<float>::quiet_NaN();
+    samples[kFeatureCount + channel::kDiffuse] = -5.0f;
+    samples[2 * kFeatureCount + channel::kDiffuse] = std::numeric_limits<float>::infinity();
+    const float withBad = exposureOf(SampleBands(samples.data(), 32, 32, 1), 32);
+    EXPECT_TRUE(std::isfinite(withBad));
+    EXPECT_GT(withBad, kExposureKey);  // three red values of the first square now read 0: darker key
+    const auto black = greyFrame(8, 8, [](int, int) { return 0.0f; });
+    EXPECT_EQ(exposureOf(SampleBands(black.data(), 8, 8, 1), 8), 0.0f);
 }
 
 TEST(Embedding, RejectsBadLayers) {

@@ -18,6 +18,9 @@ struct DenoiseReport {
     long long invalidRadiance = 0;  // NaN, Inf or negative radiance values treated as 0
     bool usedHistory = false;       // a previous frame contributed
     std::string resetReason;        // why history was dropped before this frame, if it was
+    // The sequence's exposure normalisation (docs/MODEL.md section 1): the factor on the radiance
+    // the network saw, set at the first frame of a sequence (1 while every frame was black).
+    float exposure = 1.0f;
     // Wall-clock milliseconds per pipeline stage, in pipeline order, for profiling.
     std::vector<std::pair<std::string, double>> stageMilliseconds;
     // Bytes of the buffers the denoiser keeps after the frame (all its maps, in use or free for

@@ -35,6 +35,14 @@ inline constexpr int kFeatureCount = 18;
 // The network's depth normalisation (docs/MODEL.md section 1) averages the depths of every
 // kDepthScaleRowStep-th image row, starting at row 0: a quarter of the input to read.
 inline constexpr int kDepthScaleRowStep = 4;
+// The network's exposure normalisation (docs/MODEL.md section 1): a sequence's radiance is scaled
+// by kExposureKey / key before the network sees it, where the key is the geometric mean of the
+// mean luminance in squares of kExposureBin x kExposureBin pixels (of the same rows as the depth
+// scale), squares darker than kExposureDarkBin x the mean square left out. 0.18: the median key of
+// the training sequences (data-f10: 0.176), so that any brightness looks like what it learnt on.
+inline constexpr int kExposureBin = 16;
+inline constexpr double kExposureKey = 0.18;
+inline constexpr double kExposureDarkBin = 1e-4;
 inline constexpr float kRoughnessFloor = 0.02f;
 
 inline constexpr std::array<FeatureGroup, 10> kFeatureGroups{{
