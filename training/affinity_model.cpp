@@ -28,7 +28,7 @@ std::string shapeText(const torch::Tensor& tensor) {
 
 RecurrentState RecurrentState::detached() const {
     if (empty()) return {};
-    return {embedding.detach(), radiance.detach(), output.detach(), features.detach()};
+    return {embedding.detach(), radiance.detach(), output.detach(), features.detach(), exposure};
 }
 
 ConvStackImpl::ConvStackImpl(int inChannels, const ConvStackSpec& spec) {
@@ -131,7 +131,8 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
 
     FrameResult result;
     // Sections 1-2: sanitised inputs, per-sample embedding averaged per pixel.
-    PreparedInputs prepared = prepareInputs(samples, config_.emissionBypass);
+    // A sequence keeps the exposure of its first frame (the core does the same).
+    PreparedInputs prepared = prepareInputs(samples, config_.emissionBypass, history ? state.exposure : torch::Tensor());
     result.noisy = prepared.radiance;
     result.invalidCount = prepared.invalidCount;
     result.embedding = embed(prepared.networkInput);
@@ -197,7 +198,7 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     result.output = radianceFromSignal(filtered, unfiltered > 0 ? result.accumulated.narrow(1, C, unfiltered) : torch::Tensor(),
                                        config_.albedoDemodulation, config_.emissionBypass);
 
-    state = {accumulatedEmbedding, result.accumulated, filtered, last.features};
+    state = {accumulatedEmbedding, result.accumulated, filtered, last.features, prepared.exposure};
     return result;
 }
 

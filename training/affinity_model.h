@@ -57,6 +57,7 @@ struct RecurrentState {
     torch::Tensor radiance;   // L̄_t [B, C, H, W], in the filtered signal's C channels
     torch::Tensor output;     // the last kernel's output [B, C, H, W], before remodulation
     torch::Tensor features;   // f^{K-1}_t [B, F, H, W]
+    torch::Tensor exposure;   // [B]: the sequence's exposure normalisation (prepareInputs), 0 while black
     bool empty() const { return !output.defined(); }
     // The same values cut from the autograd graph: truncated back-propagation through time.
     RecurrentState detached() const;

@@ -3,6 +3,7 @@
 #include <ATen/ATen.h>
 
 #include <cstdlib>
+#include <limits>
 #include <string>
 
 #include "affinity/error.h"
@@ -65,7 +66,34 @@ void checkImage(const at::Tensor& tensor, const char* what, std::int64_t channel
 
 }  // namespace
 
-PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass) {
+at::Tensor exposureOf(const at::Tensor& cleanRadiance) {
+    const std::int64_t spp = cleanRadiance.size(1);
+    const std::int64_t height = cleanRadiance.size(3), width = cleanRadiance.size(4);
+    const at::Tensor rgb = (cleanRadiance.narrow(2, 0, 3) + cleanRadiance.narrow(2, 3, 3)).to(at::kDouble).sum(1) /
+                           double(spp);
+    const at::Tensor luminance = 0.2126 * rgb.select(1, 0) + 0.7152 * rgb.select(1, 1) + 0.0722 * rgb.select(1, 2);
+    // The rows the depth scale reads; squares of kExposureBin pixels are kExposureBin / step of them.
+    const at::Tensor rows = luminance.slice(1, 0, height, kDepthScaleRowStep);
+    const std::int64_t rowsPerSquare = kExposureBin / kDepthScaleRowStep;
+    const std::int64_t squaresY = (rows.size(1) + rowsPerSquare - 1) / rowsPerSquare;
+    const std::int64_t squaresX = (width + kExposureBin - 1) / kExposureBin;
+    const std::vector<std::int64_t> padding{0, squaresX * kExposureBin - width, 0, squaresY * rowsPerSquare - rows.size(1)};
+    auto squareSums = [&](const at::Tensor& values) {  // [B, R, W] -> [B, squares]
+        return at::constant_pad_nd(values, padding, 0.0)
+            .view({values.size(0), squaresY, rowsPerSquare, squaresX, kExposureBin})
+            .sum({2, 4})
+            .view({values.size(0), squaresY * squaresX});
+    };
+    const at::Tensor means = squareSums(rows) / squareSums(at::ones_like(rows.narrow(0, 0, 1)));
+    const at::Tensor mean = means.mean(1, true);
+    const at::Tensor lit = means > kExposureDarkBin * mean;
+    const at::Tensor logMean = at::where(lit, at::log(at::where(lit, means, 1.0)), 0.0).sum(1) /
+                               lit.sum(1).clamp_min(1).to(at::kDouble);
+    const at::Tensor found = (mean.squeeze(1) > 0).logical_and(at::isfinite(mean.squeeze(1)));
+    return at::where(found, kExposureKey / at::exp(logMean), 0.0);
+}
+
+PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass, const at::Tensor& sequenceExposure) {
     if (samples.dim() != 5 || samples.size(2) != kFeatureCount) {
         throw Error("prepareInputs: samples must be [B, S, 18, H, W]");
     }
@@ -95,11 +123,19 @@ PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass) {
     const at::Tensor scale =
         at::where(any, hitCount / at::where(any, depthSum, 1.0), 0.0).to(samples.scalar_type()).view({batch, 1, 1, 1, 1});
 
+    // The exposure normalisation: the sequence's, or this frame's where it has none yet.
+    at::Tensor exposure = exposureOf(clean).to(samples.scalar_type());
+    if (sequenceExposure.defined())
+        exposure = at::where(sequenceExposure > 0, sequenceExposure.to(exposure.scalar_type()), exposure);
+    const at::Tensor factor = at::where(exposure > 0, exposure, 1.0).view({batch, 1, 1, 1, 1});
+    // Kept finite like the core's (log1p of +Inf would be +Inf there too, but the core clamps).
+    const at::Tensor exposed = (clean * factor).clamp_max(std::numeric_limits<float>::max());
+
     at::Tensor networkInput =
-        at::cat({at::log1p(clean), finiteOrZero(samples.narrow(2, channel::kNormal, 3)), depth * scale,
+        at::cat({at::log1p(exposed), finiteOrZero(samples.narrow(2, channel::kNormal, 3)), depth * scale,
                  finiteOrZero(samples.narrow(2, channel::kAlbedo, kFeatureCount - channel::kAlbedo))},
                 2);
-    PreparedInputs prepared{networkInput, noisy, {}, {}, {}, albedo, invalidCount};
+    PreparedInputs prepared{networkInput, noisy, {}, {}, {}, albedo, invalidCount, exposure};
     if (emissionBypass) {
         // An emitter or the sky seen directly; through a mirror or glass the path's choices make
         // it as noisy as any other light.

@@ -18,9 +18,16 @@ struct PreparedInputs {
     at::Tensor emitted;         // [B, 3, H, W] with emission bypass, undefined without
     at::Tensor albedo;          // [B, 3, H, W]: mean albedo (non-finite or negative read as 0)
     at::Tensor invalidCount;    // [B] int64: radiance values that were non-finite or negative
+    at::Tensor exposure;        // [B]: the exposure the radiance was scaled by (0: black, scaled by 1)
 };
-// samples: [B, S, 18, H, W] raw features. depthScale is computed per batch element (frame).
-PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass = false);
+// samples: [B, S, 18, H, W] raw features. depthScale is computed per batch element (frame), the
+// exposure normalisation too unless `exposure` ([B], a sequence's) is given; where that is 0 (the
+// sequence's frames so far black) it is computed from this frame.
+PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass = false,
+                             const at::Tensor& exposure = at::Tensor());
+// The core's exposureOf (core/src/exposure.h) per batch element of sanitised radiance
+// [B, S, 6, H, W] (diffuse then specular, non-finite and negative values already 0): [B] in double.
+at::Tensor exposureOf(const at::Tensor& cleanRadiance);
 
 // Albedo below this divides (and multiplies) as this: the quotient stays bounded (the core's
 // kDemodulationFloor in core/src/filter_signal.h says why 0.1).

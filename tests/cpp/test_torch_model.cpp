@@ -444,7 +444,20 @@ TEST(TorchOps, SanitisesRadianceAndScalesDepthPerFrame) {
     clean[0][1][4][2][3] = 0.0f;
     clean[1][0][2][0][0] = 0.0f;
     EXPECT_TRUE(torch::isfinite(prepared.networkInput).all().item<bool>());
-    EXPECT_LT(maxAbsDiff(prepared.networkInput.narrow(2, 0, 6), torch::log1p(clean.narrow(2, 0, 6))), 1e-6);
+    // The exposure: the frames are one square of the key (6x4 pixels), whose rows 0 and 4 are
+    // read, so the key is their mean luminance (of each pixel's mean over the samples).
+    for (std::int64_t b = 0; b < 2; ++b) {
+        const torch::Tensor rgb = (clean[b].narrow(1, 0, 3) + clean[b].narrow(1, 3, 3)).mean(0).to(torch::kDouble);
+        const torch::Tensor luminance = 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+        const double key = luminance.index_select(0, torch::tensor({0, 4})).mean().item<double>();
+        EXPECT_NEAR(prepared.exposure[b].item<double>(), kExposureKey / key, 1e-6 * kExposureKey / key) << b;
+    }
+    const torch::Tensor exposure = prepared.exposure.view({2, 1, 1, 1, 1});
+    EXPECT_LT(maxAbsDiff(prepared.networkInput.narrow(2, 0, 6), torch::log1p(clean.narrow(2, 0, 6) * exposure)), 1e-6);
+    // A sequence's exposure, where given and not 0, replaces the frame's own.
+    const PreparedInputs later = prepareInputs(samples, false, torch::tensor({2.0f, 0.0f}));
+    EXPECT_FLOAT_EQ(later.exposure[0].item<float>(), 2.0f);
+    EXPECT_FLOAT_EQ(later.exposure[1].item<float>(), prepared.exposure[1].item<float>());
     EXPECT_LT(maxAbsDiff(prepared.radiance, (clean.narrow(2, 0, 3) + clean.narrow(2, 3, 3)).mean(1)), 1e-6);
     for (std::int64_t b = 0; b < 2; ++b) {
         const torch::Tensor depth = samples[b].narrow(1, 9, 1);
@@ -509,6 +522,9 @@ TEST(TorchModel, NoValidHistoryEqualsASingleFrameRun) {
     AffinityModel model = makeModel(presetConfig("tiny"), 8);
     std::vector<FrameInput> frames = randomSequence(2, 2, 9, 13, torch::kFloat);
     frames[1].valid.zero_();
+    // A sequence keeps its first frame's exposure: frame 1 gets frame 0's radiance, shifted along
+    // the rows (the same sums in the one square of the exposure key, other pixels).
+    frames[1].samples.narrow(2, 0, 6).copy_(frames[0].samples.narrow(2, 0, 6).roll(5, 4));
     torch::NoGradGuard noGrad;
     const auto sequence = model->forwardSequence(frames);
     const auto single = model->forwardSequence({frames[1]});

@@ -81,11 +81,21 @@ def test_ablations_are_named_and_unknown_ones_refused():
 
 
 def test_single_frame_ablation_ignores_history_and_stages_are_timed(sequence: list[dict]) -> None:
-    ablated = affinity.Denoiser(ablation="single_frame")
+    # The ablation keeps the sequence's exposure (set by frame 0's radiance) and nothing else of
+    # it: after a frame 0 with the same radiance but frame 2's other features, the same output.
+    ablated, other = affinity.Denoiser(ablation="single_frame"), affinity.Denoiser(ablation="single_frame")
     ablated.denoise(sequence[0])
     second = ablated.denoise(sequence[1])
     assert not ablated.last_report["used_history"]
-    np.testing.assert_array_equal(second, affinity.Denoiser().denoise(sequence[1]))
+    unlike = dict(sequence[0])
+    unlike["samples"] = sequence[0]["samples"].copy()
+    unlike["samples"][..., 6:] = sequence[2]["samples"][..., 6:]
+    other.denoise(unlike)
+    np.testing.assert_array_equal(second, other.denoise(sequence[1]))
+    assert other.last_report["exposure"] == ablated.last_report["exposure"] != 1.0
+    full = affinity.Denoiser()
+    full.denoise(sequence[0])
+    assert np.abs(full.denoise(sequence[1]) - second).max() > 1e-3  # the ablation changed something
     stages = ablated.last_report["stage_ms"]
     assert list(stages)[0] == "embedding" and list(stages)[-1] == "temporal kernel"
     assert all(ms >= 0.0 for ms in stages.values())
@@ -102,15 +112,19 @@ def test_any_array_layout_gives_the_same_output(sequence: list[dict]) -> None:
     assert frame["samples"].flags["C_CONTIGUOUS"]  # the input was not touched
 
 
-def _with_sample0_depth(frame: dict) -> dict:
-    """Every sample at sample 0's depth: the first batch's depth normalisation is the frame's."""
+def _with_sample0_depth(frame: dict, radiance: bool = False) -> dict:
+    """Every sample at sample 0's depth (and radiance): the first batch's depth normalisation
+    (and exposure) is the frame's."""
     samples = frame["samples"].copy()
     samples[..., 9] = samples[:, :, :1, 9]
+    if radiance:
+        samples[..., :6] = samples[:, :, :1, :6]
     return {**frame, "samples": samples}
 
 
 def test_streamed_samples_equal_the_whole_frame(sequence: list[dict]) -> None:
-    frames = [_with_sample0_depth(f) for f in sequence]
+    # The exposure comes from the first batch of the sequence's first frame.
+    frames = [_with_sample0_depth(f, radiance=i == 0) for i, f in enumerate(sequence)]
     whole, stream = affinity.Denoiser(), affinity.Denoiser()
     for frame in frames:
         expected = whole.denoise(frame)
