@@ -90,7 +90,10 @@ at::Tensor exposureOf(const at::Tensor& cleanRadiance) {
     const at::Tensor logMean = at::where(lit, at::log(at::where(lit, means, 1.0)), 0.0).sum(1) /
                                lit.sum(1).clamp_min(1).to(at::kDouble);
     const at::Tensor found = (mean.squeeze(1) > 0).logical_and(at::isfinite(mean.squeeze(1)));
-    return at::where(found, kExposureKey / at::exp(logMean), 0.0);
+    const at::Tensor key = at::exp(logMean);
+    const at::Tensor factor =
+        at::where(key < kExposureKeyLow, kExposureKeyLow / key, at::where(key > kExposureKeyHigh, kExposureKeyHigh / key, 1.0));
+    return at::where(found, factor, 0.0);  // exposureForKey (features.h)
 }
 
 PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass, const at::Tensor& sequenceExposure) {

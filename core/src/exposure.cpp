@@ -47,7 +47,7 @@ float exposureOf(const SampleBands& frame, int height) {
             logSum += std::log(m);
             ++lit;
         }
-    return float(kExposureKey / std::exp(logSum / lit));
+    return float(exposureForKey(std::exp(logSum / lit)));
 }
 
 }  // namespace affinity
