@@ -299,32 +299,32 @@ std::vector<float> greyFrame(int height, int width, Value value) {
 
 TEST(Exposure, KeyIsTheGeometricMeanOfTheSquaresByHand) {
     // Two 16x16 squares, grey 0.5 and 2 (luminance weights sum to 1): key sqrt(0.5 * 2) = 1, above
-    // the trained range's 0.5, so the radiance is halved. Only every 4th row is read: the other
+    // the trained range's 0.64, so the radiance is scaled by 0.64. Only every 4th row is read: the other
     // rows hold 1000, which must not count.
     const auto samples = greyFrame(16, 32, [](int x, int y) { return y % 4 ? 1000.0f : (x < 16 ? 0.5f : 2.0f); });
-    EXPECT_NEAR(exposureOf(SampleBands(samples.data(), 16, 32, 1), 16), 0.5, 1e-6);
-    // Keys inside [0.014, 0.5] are left alone; below, brought up to 0.014.
+    EXPECT_NEAR(exposureOf(SampleBands(samples.data(), 16, 32, 1), 16), 0.64, 1e-6);
+    // Keys inside [0.0013, 0.64] are left alone; below, brought up to 0.0013.
     const auto inside = greyFrame(16, 32, [](int x, int) { return x < 16 ? 0.01f : 0.04f; });  // key 0.02
     EXPECT_EQ(exposureOf(SampleBands(inside.data(), 16, 32, 1), 16), 1.0f);
-    const auto dim = greyFrame(16, 32, [](int x, int) { return x < 16 ? 0.001f : 0.004f; });  // key 0.002
-    EXPECT_NEAR(exposureOf(SampleBands(dim.data(), 16, 32, 1), 16), 7.0, 1e-5);
+    const auto dim = greyFrame(16, 32, [](int x, int) { return x < 16 ? 0.0001f : 0.0004f; });  // key 0.0002
+    EXPECT_NEAR(exposureOf(SampleBands(dim.data(), 16, 32, 1), 16), 6.5, 1e-5);
     // Partial squares average the pixels they have: a 20x18 frame, 4 squares, each uniform.
     const auto partial = greyFrame(18, 20, [](int x, int y) { return (x < 16 ? 1.0f : 4.0f) * (y < 16 ? 1.0f : 9.0f); });
     // Squares 1, 4, 9 and 36: key (1 * 4 * 9 * 36)^(1/4) = 1296^(1/4) = 6.
-    EXPECT_NEAR(exposureOf(SampleBands(partial.data(), 18, 20, 1), 18), 0.5 / 6.0, 1e-6);
+    EXPECT_NEAR(exposureOf(SampleBands(partial.data(), 18, 20, 1), 18), 0.64 / 6.0, 1e-6);
 }
 
 TEST(Exposure, DarkSquaresBadRadianceAndBlackFrames) {
     // Squares of 1, 1, 1 and 1e-5 (under 1e-4 of the mean square, 0.75): the dark one is left
     // out, key 1. NaN, Inf and negative radiance read as 0.
     auto samples = greyFrame(32, 32, [](int x, int y) { return x >= 16 && y >= 16 ? 1e-5f : 1.0f; });
-    EXPECT_NEAR(exposureOf(SampleBands(samples.data(), 32, 32, 1), 32), 0.5, 1e-6);
+    EXPECT_NEAR(exposureOf(SampleBands(samples.data(), 32, 32, 1), 32), 0.64, 1e-6);
     samples[channel::kDiffuse] = std::numeric_limits<float>::quiet_NaN();
     samples[kFeatureCount + channel::kDiffuse] = -5.0f;
     samples[2 * kFeatureCount + channel::kDiffuse] = std::numeric_limits<float>::infinity();
     const float withBad = exposureOf(SampleBands(samples.data(), 32, 32, 1), 32);
     EXPECT_TRUE(std::isfinite(withBad));
-    EXPECT_GT(withBad, 0.5f);  // three red values of the first square now read 0: darker key
+    EXPECT_GT(withBad, 0.64f);  // three red values of the first square now read 0: darker key
     const auto black = greyFrame(8, 8, [](int, int) { return 0.0f; });
     EXPECT_EQ(exposureOf(SampleBands(black.data(), 8, 8, 1), 8), 0.0f);
 }
