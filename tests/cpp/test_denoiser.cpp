@@ -623,3 +623,20 @@ TEST(DenoiserLentBands, TheBandsMemoryServesTheLaterMaps) {
     EXPECT_LT(double(lentBytes[3]), double(wholeBytes[3]) + 0.6 * double(input))
         << "whole " << wholeBytes[3] << " lent " << lentBytes[3] << " input " << input;
 }
+
+TEST(DenoiserExposure, ACameraCutStartsANewSequence) {
+    auto frames = test::randomSequence(2, 16, 16, 1, 34);
+    frames[1] = scaledRadiance({frames[0]}, 10.0f)[0];
+    frames[1].info.worldToCamera = {0, 0, -1, 0, 0, 1, 0, 0, 1, 0, 0, -5, 0, 0, 0, 1};  // turned 90 degrees
+    for (const bool streamedFrames : {false, true}) {
+        Denoiser denoiser(randomModel(8));
+        DenoiseReport first, cut;
+        denoiser.denoise(frames[0], &first);
+        if (streamedFrames)  // the cut shows only at finishFrame(): the frame keeps the exposure
+            streamed(denoiser, frames[1], {1}, &cut);
+        else
+            denoiser.denoise(frames[1], &cut);
+        EXPECT_FALSE(cut.resetReason.empty());
+        EXPECT_NEAR(cut.exposure / first.exposure, streamedFrames ? 1.0f : 0.1f, 1e-6f) << streamedFrames;
+    }
+}
