@@ -72,7 +72,8 @@ int denoiseCommand(const std::vector<std::string>& args) {
         writeTonemappedPng((out / numbered("denoised", index, "png")).string(), frame.width(), frame.height(),
                            denoised.data());
         nlohmann::json entry = {{"frame", index}, {"milliseconds", seconds * 1e3},
-                                {"used_history", report.usedHistory}, {"invalid_radiance", report.invalidRadiance}};
+                                {"used_history", report.usedHistory}, {"invalid_radiance", report.invalidRadiance},
+                                {"exposure", report.exposure}};
         if (!report.resetReason.empty()) entry["reset_reason"] = report.resetReason;
         if (report.invalidRadiance > 0)
             std::fprintf(stderr, "\nwarning: %s: %lld NaN/Inf/negative radiance values read as 0\n", frames[i].c_str(),

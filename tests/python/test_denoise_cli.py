@@ -1,0 +1,84 @@
+"""`affinity denoise` end to end: the same output as the Python denoiser on the same frames,
+per-frame EXR + PNG and a summary, inputs never touched, clear refusals."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import pathlib
+import subprocess
+
+import numpy as np
+import pytest
+
+import affinity
+from affinity import metrics
+
+BUILD = pathlib.Path(os.environ.get("AFFINITY_BUILD_DIR", pathlib.Path(__file__).parents[2] / "build"))
+CLI = BUILD / "core" / "affinity"
+EXR_MAGIC = bytes([0x76, 0x2F, 0x31, 0x01])
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def frames_dir(tmp_path_factory: pytest.TempPathFactory) -> pathlib.Path:
+    out = tmp_path_factory.mktemp("cli") / "frames"
+    subprocess.run([str(CLI), "render", "--scene", "disocclusion", "--frames", "3", "--spp", "2", "--size", "36x24",
+                    "--reference-spp", "32", "--seed", "5", "--out", str(out)], check=True, capture_output=True,
+                   timeout=300)
+    return out
+
+
+def denoise(*arguments: str) -> subprocess.CompletedProcess[str]:
+    return subprocess.run([str(CLI), "denoise", *arguments], capture_output=True, text=True, timeout=300)
+
+
+def checksums(folder: pathlib.Path) -> dict[str, str]:
+    return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+
+
+def test_the_cli_denoises_as_the_python_denoiser_does(frames_dir: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    before = checksums(frames_dir)
+    done = denoise("--in", str(frames_dir), "--out", str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+    assert checksums(frames_dir) == before  # inputs untouched
+    summary = json.loads((tmp_path / "out" / "denoise_summary.json").read_text())
+    assert summary["frames"] == 3 and summary["model"]
+
+    # The same frames through affinity.Denoiser: the summary's errors are of the same output.
+    denoiser = affinity.Denoiser()
+    for entry, path in zip(summary["per_frame"], affinity.list_frame_files(frames_dir)):
+        frame = affinity.read_frame(path)
+        output = denoiser.denoise(frame)
+        report = denoiser.last_report
+        assert entry["used_history"] == report["used_history"] == (entry["frame"] > 0)
+        assert entry["exposure"] == pytest.approx(report["exposure"], rel=1e-7)
+        assert entry["denoised"]["smape"] == pytest.approx(metrics.smape(output, frame["reference"]), rel=1e-9)
+        assert entry["denoised"]["psnr"] == pytest.approx(metrics.psnr(output, frame["reference"]), rel=1e-9)
+        noisy = frame["samples"][..., :3].mean(axis=2) + frame["samples"][..., 3:6].mean(axis=2)
+        assert entry["noisy"]["smape"] == pytest.approx(metrics.smape(noisy, frame["reference"]), rel=1e-5)
+        assert entry["denoised"]["smape"] < 0.6 * entry["noisy"]["smape"]
+        index = entry["frame"]
+        assert (tmp_path / "out" / f"denoised_{index:04d}.exr").read_bytes()[:4] == EXR_MAGIC
+        assert (tmp_path / "out" / f"denoised_{index:04d}.png").read_bytes()[:8] == PNG_SIGNATURE
+
+
+def test_the_cli_refuses_to_overwrite_and_names_the_problem(frames_dir: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    same = denoise("--in", str(frames_dir), "--out", str(frames_dir))
+    assert same.returncode != 0 and "inputs are never overwritten" in same.stderr
+    out = tmp_path / "out"
+    assert denoise("--in", str(frames_dir), "--out", str(out)).returncode == 0
+    first = checksums(out)
+    again = denoise("--in", str(frames_dir), "--out", str(out))
+    assert again.returncode != 0 and "--force" in again.stderr
+    assert checksums(out) == first  # the refused run wrote nothing
+    assert denoise("--in", str(frames_dir), "--out", str(out), "--force").returncode == 0
+    (tmp_path / "empty").mkdir()
+    empty = denoise("--in", str(tmp_path / "empty"), "--out", str(tmp_path / "o2"))
+    assert empty.returncode != 0 and "holds no frame files" in empty.stderr
+    corrupt = tmp_path / "model.affw"
+    corrupt.write_bytes(b"AFFWGHTS" + bytes(40))
+    bad = denoise("--in", str(frames_dir), "--out", str(tmp_path / "o3"), "--model", str(corrupt))
+    assert bad.returncode != 0 and str(corrupt) in bad.stderr
+    assert np.all([not (tmp_path / "o3" / f"denoised_{i:04d}.exr").exists() for i in range(3)])
