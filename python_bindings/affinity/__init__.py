@@ -138,8 +138,10 @@ class Denoiser:
             all_kernels=ablation != "one_kernel",
         )
         #: What the last call did: invalid_radiance (NaN/Inf/negative values read as 0),
-        #: used_history, reset_reason, stage_ms (milliseconds per pipeline stage), buffer_bytes
-        #: (memory of the buffers the denoiser keeps between frames).
+        #: used_history, reset_reason, exposure (the factor on the radiance the network saw, set by
+        #: the sequence's first frame: 1 for scenes as bright as the training scenes), stage_ms
+        #: (milliseconds per pipeline stage), buffer_bytes (memory of the buffers the denoiser
+        #: keeps between frames).
         self.last_report: dict[str, Any] = {}
 
     @property
