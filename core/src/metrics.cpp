@@ -34,14 +34,28 @@ double tonemap(double x) {
     return x / (1.0 + x);
 }
 
-// Whether pixel (x, y) counts in the temporal metrics: valid, and its warp target inside the grid
-// of pixel centres (so no bilinear tap is border-clamped; false for NaN motion too).
-bool countsInTemporalMetrics(int x, int y, const float* motion, const float* valid, int width, int height) {
-    const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
-    const float targetX = float(x) + motion[2 * p], targetY = float(y) + motion[2 * p + 1];
-    const bool inside =
-        targetX >= 0.0f && targetX <= float(width - 1) && targetY >= 0.0f && targetY <= float(height - 1);
-    return valid[p] >= 0.5f && inside;
+// The mean over the pixels that count in the temporal metrics (valid, and the warp target inside
+// the grid of pixel centres, so no bilinear tap is border-clamped; NaN motion never counts) of
+// pixelSum(pixel index, warped pixel of `warped`), each pixel worth `valuesPerPixel` values. NaN
+// when no pixel counts.
+template <class PixelSum>
+double meanOverCountedPixels(const FeatureMap& warped, const float* motion, const float* valid, int valuesPerPixel,
+                             PixelSum pixelSum) {
+    const int width = warped.width(), height = warped.height();
+    double sum = 0.0;
+    std::size_t count = 0;
+    for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+            const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
+            const float targetX = float(x) + motion[2 * p], targetY = float(y) + motion[2 * p + 1];
+            const bool inside =
+                targetX >= 0.0f && targetX <= float(width - 1) && targetY >= 0.0f && targetY <= float(height - 1);
+            if (!(valid[p] >= 0.5f) || !inside) continue;
+            sum += pixelSum(p, warped.pixel(y, x));
+            count += std::size_t(valuesPerPixel);
+        }
+    }
+    return count ? sum / double(count) : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace
@@ -67,22 +81,14 @@ double temporalError(const float* output, const float* previousOutput, const flo
         previousError.data()[i] = previousOutput[i] - previousReference[i];
     FeatureMap warpedError;
     warpBilinear(previousError, motion, warpedError);
-
-    double sum = 0.0;
-    std::size_t count = 0;
-    for (int y = 0; y < height; ++y) {
-        for (int x = 0; x < width; ++x) {
-            if (!countsInTemporalMetrics(x, y, motion, valid, width, height)) continue;
-            const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
-            const float* warped = warpedError.pixel(y, x);
-            for (int c = 0; c < 3; ++c) {
-                const double error = double(output[3 * p + c]) - reference[3 * p + c];
-                sum += std::abs(error - double(warped[c]));
-            }
-            count += 3;
+    return meanOverCountedPixels(warpedError, motion, valid, 3, [&](std::size_t p, const float* warped) {
+        double sum = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            const double error = double(output[3 * p + c]) - reference[3 * p + c];
+            sum += std::abs(error - double(warped[c]));
         }
-    }
-    return count ? sum / double(count) : kNoPixel;
+        return sum;
+    });
 }
 
 double warpingError(const float* image, const float* previousImage, const float* motion, const float* valid,
@@ -94,23 +100,15 @@ double warpingError(const float* image, const float* previousImage, const float*
     for (std::size_t i = 0; i < previous.size(); ++i) previous.data()[i] = float(tonemap(previousImage[i]));
     FeatureMap warped;
     warpBilinear(previous, motion, warped);
-
-    double sum = 0.0;
-    std::size_t count = 0;
-    for (int y = 0; y < height; ++y) {
-        for (int x = 0; x < width; ++x) {
-            if (!countsInTemporalMetrics(x, y, motion, valid, width, height)) continue;
-            const std::size_t p = std::size_t(y) * std::size_t(width) + std::size_t(x);
-            const float* before = warped.pixel(y, x);
-            for (int c = 0; c < 3; ++c) {
-                // Rounded to float like the warped side, so an unchanged still image gives exactly 0.
-                const double change = double(float(tonemap(image[3 * p + c]))) - double(before[c]);
-                sum += change * change;
-            }
-            ++count;
+    return meanOverCountedPixels(warped, motion, valid, 1, [&](std::size_t p, const float* before) {
+        double sum = 0.0;
+        for (int c = 0; c < 3; ++c) {
+            // Rounded to float like the warped side, so an unchanged still image gives exactly 0.
+            const double change = double(float(tonemap(image[3 * p + c]))) - double(before[c]);
+            sum += change * change;
         }
-    }
-    return count ? sum / double(count) : kNoPixel;
+        return sum;
+    });
 }
 
 }  // namespace affinity
