@@ -126,12 +126,16 @@ PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass, con
     const at::Tensor scale =
         at::where(any, hitCount / at::where(any, depthSum, 1.0), 0.0).to(samples.scalar_type()).view({batch, 1, 1, 1, 1});
 
-    // The exposure normalisation: the sequence's, or this frame's where it has none yet.
-    at::Tensor exposure = exposureOf(clean).to(samples.scalar_type());
-    if (sequenceExposure.defined())
-        exposure = at::where(sequenceExposure > 0, sequenceExposure.to(exposure.scalar_type()), exposure);
+    // The exposure normalisation: the sequence's, or this frame's where it has none yet (the key
+    // is computed only then: every frame of a training window but the first has one).
+    at::Tensor exposure;
+    if (sequenceExposure.defined()) exposure = sequenceExposure.to(samples.scalar_type());
+    if (!exposure.defined() || (exposure <= 0).any().item<bool>()) {
+        const at::Tensor own = exposureOf(clean).to(samples.scalar_type());
+        exposure = exposure.defined() ? at::where(exposure > 0, exposure, own) : own;
+    }
     const at::Tensor factor = at::where(exposure > 0, exposure, 1.0).view({batch, 1, 1, 1, 1});
-    // Kept finite like the core's (log1p of +Inf would be +Inf there too, but the core clamps).
+    // Kept finite as in the core: a huge exposure saturates at log1p(FLT_MAX).
     const at::Tensor exposed = (clean * factor).clamp_max(std::numeric_limits<float>::max());
 
     at::Tensor networkInput =
