@@ -29,6 +29,7 @@ constexpr const char* kUsage =
     "  --batch B           crops per step (4)      --crop C      crop side (64)\n"
     "  --frames T          frames per sequence, back-propagated through (6)\n"
     "  --min-spp N --max-spp N   spp drawn per step (2..8)   --val-spp N   (4)\n"
+    "  --spp-log-uniform   draw that spp log-uniformly (most steps at few samples; default uniform)\n"
     "  --lr X              Adam learning rate (1e-3)   --lr-half-life N   halve every N steps (0: off)\n"
     "  --clip X            gradient norm clipping (1; 0: off)\n"
     "  --temporal-weight W weight of the temporal SMAPE term (0.25, the paper's)\n"
@@ -64,6 +65,10 @@ int main(int argc, char** argv) {
             }
             if (flag == "--warped-temporal") {
                 options.loss.warpedTemporal = true;
+                continue;
+            }
+            if (flag == "--spp-log-uniform") {
+                options.sppLogUniform = true;
                 continue;
             }
             if (flag == "--fresh") {

@@ -162,9 +162,19 @@ Batch assemble(std::vector<Clip>& clips, const torch::Device& device) {
     return batch;
 }
 
+}  // namespace
+
+int drawBatchSpp(int low, int high, bool logUniform, std::mt19937_64& rng) {
+    if (!logUniform) return std::uniform_int_distribution<int>(low, high)(rng);
+    const double u = std::uniform_real_distribution<double>(std::log(double(low)), std::log(double(high) + 1.0))(rng);
+    return std::clamp(int(std::floor(std::exp(u))), low, high);  // the clamp guards exp's rounding at the ends
+}
+
+namespace {
+
 // A random training batch: `batch` sequences (with repetition), one random window of frames,
 // one random square crop per sequence (the same in all its frames), one spp for the batch drawn
-// in [minSpp, maxSpp] as a random subset of each sequence's rendered samples.
+// in [minSpp, maxSpp] (drawBatchSpp) as a random subset of each sequence's rendered samples.
 Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options, std::mt19937_64& rng,
                   const torch::Device& device) {
     std::int64_t frameCount = options.frames, size = options.crop, spp = 64;
@@ -175,7 +185,7 @@ Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options
     }
     const std::int64_t lowSpp = std::min<std::int64_t>(options.minSpp, spp);
     const std::int64_t highSpp = std::min<std::int64_t>(options.maxSpp, spp);
-    const std::int64_t batchSpp = std::uniform_int_distribution<std::int64_t>(lowSpp, highSpp)(rng);
+    const std::int64_t batchSpp = drawBatchSpp(int(lowSpp), int(highSpp), options.sppLogUniform, rng);
     std::vector<Clip> clips;
     for (int b = 0; b < options.batch; ++b) {
         const Sequence& sequence = data[std::uniform_int_distribution<std::size_t>(0, data.size() - 1)(rng)];

@@ -3,6 +3,7 @@
 // sequences as the renderer writes them (one folder per sequence, frame_NNNN.exr with a
 // reference). Torch-free interface: the CLI (train_main.cpp) and the tests call runTraining.
 #include <cstdint>
+#include <random>
 #include <string>
 
 #include "loss_weights.h"
@@ -24,6 +25,7 @@ struct TrainOptions {
     int crop = 64;              // square crop side, the same window in every frame of a sequence
     int frames = 6;             // frames per training sequence (back-propagation through all of them)
     int minSpp = 2, maxSpp = 8; // samples per pixel drawn per step from the rendered ones
+    bool sppLogUniform = false; // draw the spp log-uniformly (as many steps in 2-4 as in 4-8, 8-16)
     int valSpp = 4;             // samples per pixel for validation (the first valSpp samples)
     bool augment = true;        // dihedral transforms (motion transformed too) and colour permutations
     double learningRate = 1e-3;
@@ -52,5 +54,10 @@ struct TrainSummary {
 
 // Throws affinity::Error for bad options or data.
 TrainSummary runTraining(const TrainOptions& options);
+
+// One step's samples per pixel in [low, high]: uniform, or log-uniform (count s drawn with
+// probability log((s + 1) / s) / log((high + 1) / low)), so that a wide range such as 2-16
+// still spends most steps at the few samples the denoiser is for.
+int drawBatchSpp(int low, int high, bool logUniform, std::mt19937_64& rng);
 
 }  // namespace affinity::train

@@ -4,7 +4,9 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <random>
 #include <string>
+#include <vector>
 
 #include <gtest/gtest.h>
 #include <torch/torch.h>
@@ -224,6 +226,28 @@ TEST(TrainingAugmentation, WarpCommutesWithEveryTransform) {
             }
         }
     }
+}
+
+// Each count's share of 30,000 draws against its probability: 1/15 each (uniform), and
+// log((s + 1) / s) / log(17 / 2) log-uniformly, so that 2-8 spp get 70 % of the steps.
+TEST(TrainingOptions, BatchSppIsDrawnUniformlyOrLogUniformly) {
+    constexpr int kDraws = 30000;
+    for (const bool logUniform : {false, true}) {
+        std::mt19937_64 rng(5);
+        std::vector<int> counts(17, 0);
+        for (int i = 0; i < kDraws; ++i) {
+            const int spp = train::drawBatchSpp(2, 16, logUniform, rng);
+            ASSERT_GE(spp, 2);
+            ASSERT_LE(spp, 16);
+            ++counts[std::size_t(spp)];
+        }
+        for (int s = 2; s <= 16; ++s) {
+            const double expected = logUniform ? std::log((s + 1.0) / s) / std::log(17.0 / 2.0) : 1.0 / 15.0;
+            EXPECT_NEAR(counts[std::size_t(s)] / double(kDraws), expected, 0.008) << "spp " << s << " log " << logUniform;
+        }
+    }
+    std::mt19937_64 rng(6);
+    for (int i = 0; i < 100; ++i) EXPECT_EQ(train::drawBatchSpp(4, 4, true, rng), 4);
 }
 
 // One to two minutes: render a tiny fixed dataset with the sample renderer, train the tiny

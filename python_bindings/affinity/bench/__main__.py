@@ -34,6 +34,16 @@ def parse_size_list(text: str) -> tuple[tuple[int, int], ...]:
     return tuple(sizes)
 
 
+def parse_spp_list(text: str) -> tuple[int, ...]:
+    counts = []
+    for part in text.split(","):
+        part = part.strip()
+        if not part.isdigit() or not 1 <= int(part) <= 64:
+            raise argparse.ArgumentTypeError(f"'{part}' is not a sample count in 1..64")
+        counts.append(int(part))
+    return tuple(sorted(set(counts)))
+
+
 def parse_model(text: str) -> tuple[str, str]:
     label, separator, path = text.partition("=")
     if not separator or not label or not path or not label.replace("_", "").isalnum():
@@ -59,6 +69,9 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                              "<source>/core/models (tiny, small-e16, medium)")
     parser.add_argument("--methods", help="comma-separated method labels to run (default: all)")
     parser.add_argument("--sequences", help="comma-separated sequence names to run (default: the config's)")
+    parser.add_argument("--spp", type=parse_spp_list, metavar="S,...",
+                        help="input samples per pixel of the main comparison, e.g. 1,16,32 (default: the config's; "
+                             "full: 2,4,8); the crops use the config's count if listed, else the first")
     parser.add_argument("--reference-spp", type=int, help="override the config's reference samples per pixel")
     parser.add_argument("--reference-noise", action=argparse.BooleanOptionalAction,
                         help="render a second reference per sequence and score it against the first "
@@ -91,6 +104,9 @@ def configure(args: argparse.Namespace) -> Config:
             raise SystemExit(f"bench: unknown sequence(s) {', '.join(unknown)} (config {config.name} has "
                              f"{', '.join(known)})")
         config = config.with_overrides(sequences=tuple(known[name] for name in wanted))
+    if args.spp:
+        chart_spp = config.chart_spp if config.chart_spp in args.spp else args.spp[0]
+        config = config.with_overrides(spp=args.spp, chart_spp=chart_spp)
     if args.reference_spp is not None:
         config = config.with_overrides(reference_spp=args.reference_spp)
     if args.speed_sizes is not None:
