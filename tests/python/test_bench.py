@@ -138,3 +138,19 @@ def test_crops_sit_where_the_error_is_largest() -> None:
     error[6, 9] = 1.0
     y, x = report.worst_window(error, 4)
     assert y <= 6 < y + 4 and x <= 9 < x + 4
+
+
+def test_spp_option_replaces_the_sample_counts_and_keeps_the_crops_on_a_listed_one() -> None:
+    from affinity.bench.__main__ import configure, parse_arguments, parse_spp_list
+
+    assert parse_spp_list("16, 1,16") == (1, 16)
+    for bad in ("0", "65", "a", "4,,8"):
+        with pytest.raises(Exception, match="is not a sample count"):
+            parse_spp_list(bad)
+    config = configure(parse_arguments(["--out", "x", "--spp", "1,16,32"]))
+    assert config.spp == (1, 16, 32)
+    assert config.chart_spp == 1  # the config's 4 is not listed
+    assert config.render_spp == 32  # the cached renders still serve
+    config = configure(parse_arguments(["--out", "x", "--spp", "4,16"]))
+    assert (config.spp, config.chart_spp) == ((4, 16), 4)
+    assert configure(parse_arguments(["--out", "x"])).spp == (2, 4, 8)
