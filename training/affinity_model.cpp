@@ -148,7 +148,7 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
         validMask = (frame.valid.to(options) > 0.5).to(options);
         const torch::Tensor use = validMask > 0.5;
         historyEmbedding = torch::where(use, warpBilinear(state.embedding, motion), result.embedding);
-        historySignal = torch::where(use, warpBilinear(state.radiance, motion), current);
+        historySignal = torch::where(use, warpCatmullRom(state.radiance, motion), current);
     }
 
     // Sections 4-5: U-Net and per-pixel parameters.
@@ -188,7 +188,7 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     }
     const KernelParams& last = result.kernels.back();
     if (history) {
-        const TemporalTaps temporal{result.temporalBandwidth, warpBilinear(state.output, motion),
+        const TemporalTaps temporal{result.temporalBandwidth, warpCatmullRom(state.output, motion),
                                     warpBilinear(state.features, motion), validMask};
         filtered = affinityFilterTemporal(filtered, last, config_.kernelSize, 1 << (K - 1), temporal);
     } else {

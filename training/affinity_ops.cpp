@@ -1,6 +1,7 @@
 #include "affinity_ops.h"
 
 #include <ATen/ATen.h>
+#include <array>
 
 #include <cstdlib>
 #include <limits>
@@ -212,6 +213,42 @@ at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
     const at::Tensor top = tap(y0, x0) * (1 - fx) + tap(y0, x1) * fx;
     const at::Tensor bottom = tap(y1, x0) * (1 - fx) + tap(y1, x1) * fx;
     return top * (1 - fy) + bottom * fy;
+}
+
+at::Tensor warpCatmullRom(const at::Tensor& previous, const at::Tensor& motion) {
+    checkImage(previous, "the warped buffer", 0);
+    const std::int64_t batch = previous.size(0), channels = previous.size(1);
+    const std::int64_t height = previous.size(2), width = previous.size(3);
+    const WarpTargets target = warpTargets(motion.detach());
+    const at::Tensor px = target.x.clamp(0, double(width - 1)), py = target.y.clamp(0, double(height - 1));
+    const at::Tensor x0 = px.floor(), y0 = py.floor();
+    // Catmull-Rom weights of the taps at -1, 0, 1, 2 around the fraction t, each [B, 1, H, W].
+    auto weights = [](const at::Tensor& t) {
+        const at::Tensor t2 = t * t, t3 = t2 * t;
+        return std::array<at::Tensor, 4>{(-t3 + 2 * t2 - t).mul(0.5).unsqueeze(1),
+                                         (3 * t3 - 5 * t2 + 2).mul(0.5).unsqueeze(1),
+                                         (-3 * t3 + 4 * t2 + t).mul(0.5).unsqueeze(1), (t3 - t2).mul(0.5).unsqueeze(1)};
+    };
+    const std::array<at::Tensor, 4> wx = weights(px - x0), wy = weights(py - y0);
+    const at::Tensor ix = x0.to(at::kLong), iy = y0.to(at::kLong);
+
+    const at::Tensor flat = previous.reshape({batch, channels, height * width});
+    auto tap = [&](int j, int i) {
+        const at::Tensor y = (iy + (j - 1)).clamp(0, height - 1), x = (ix + (i - 1)).clamp(0, width - 1);
+        const at::Tensor index = (y * width + x).view({batch, 1, height * width}).expand({batch, channels, height * width});
+        return flat.gather(2, index).view({batch, channels, height, width});
+    };
+    at::Tensor sum;
+    for (int j = 0; j < 4; ++j) {
+        at::Tensor row = tap(j, 0) * wx[0];
+        for (int i = 1; i < 4; ++i) row = row + tap(j, i) * wx[i];
+        sum = j == 0 ? row * wy[0] : sum + row * wy[j];
+    }
+    // The range of the four nearest taps bounds the result: no ringing, no negative radiance.
+    const at::Tensor p00 = tap(1, 1), p01 = tap(1, 2), p10 = tap(2, 1), p11 = tap(2, 2);
+    const at::Tensor low = at::minimum(at::minimum(p00, p01), at::minimum(p10, p11));
+    const at::Tensor high = at::maximum(at::maximum(p00, p01), at::maximum(p10, p11));
+    return at::clamp(sum, low, high);
 }
 
 at::Tensor maxPool2x2(const at::Tensor& input) { return at::max_pool2d(input, {2, 2}, {2, 2}, {0, 0}, {1, 1}, true); }

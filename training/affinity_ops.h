@@ -47,6 +47,12 @@ at::Tensor radianceFromSignal(const at::Tensor& filtered, const at::Tensor& unfi
 // (non-finite motion reads as 0). Gradients flow to `previous` and to `motion`.
 at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion);
 
+// out(p) = Catmull-Rom lookup (4x4 taps) of `previous` at (x + motion_x, y + motion_y), the
+// position clamped to the image and the taps to its border, then clamped channel by channel to
+// the range of the four nearest taps (docs/MODEL.md section 3): the sharp warp of the signal
+// history and the previous output. Gradients flow to `previous`; motion is data.
+at::Tensor warpCatmullRom(const at::Tensor& previous, const at::Tensor& motion);
+
 // Where warpBilinear looks in the previous frame, before clamping: x + motion_x and y + motion_y,
 // each [B, H, W] (non-finite motion reads as 0).
 struct WarpTargets {

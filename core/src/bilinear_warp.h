@@ -1,6 +1,7 @@
 #pragma once
 // Bilinear warping of a previous frame's maps into the current frame by its motion vectors
-// (docs/MODEL.md section 3): the temporal history, the previous output and features.
+// (docs/MODEL.md section 3): the embedding history and the temporal kernel's features (the
+// radiance is warped sharper: catmull_rom_warp.h).
 #include "feature_map.h"
 
 namespace affinity {
@@ -13,12 +14,8 @@ void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& o
 // holding image row y at row y % height() (or a whole image).
 void warpBilinearRows(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output);
 
-// Two maps of the same size warped by the same motion in one pass: each pixel's taps and weights
-// are found once for both, and a few-channel map rides along with a wider one instead of paying
-// the per-pixel work alone. The same values as two single warps, bit for bit.
-void warpBilinear(const FeatureMap& first, const FeatureMap& second, const float* motion, FeatureMap& firstOutput,
-                  FeatureMap& secondOutput);
-void warpBilinearRows(const FeatureMap& first, const FeatureMap& second, const float* motion, int begin, int end,
-                      FeatureMap& firstOutput, FeatureMap& secondOutput);
+// Throws unless rows [begin, end) are inside `previous`, `output` (not `previous` itself) holds
+// them, and both have the same width and channels: the argument check of every warp.
+void checkWarpRows(const char* warp, const FeatureMap& previous, int begin, int end, const FeatureMap& output);
 
 }  // namespace affinity

@@ -10,6 +10,7 @@
 #include "affinity/error.h"
 #include "affinity_filter.h"
 #include "bilinear_warp.h"
+#include "catmull_rom_warp.h"
 #include "band_schedule.h"
 #include "exposure.h"
 #include "fast_exp.h"
@@ -472,7 +473,8 @@ void Denoiser::State::filterInBands(const Network& net, const UnetTail& tail, co
                 // 7. The last kernel with temporal taps on the warped previous output: one row
                 // each way of warped rows.
                 const int warpTo = std::min(height, end + 1);
-                warpBilinearRows(lastFeatures, output, motion, warpedEnd, warpTo, warpedFeatures, warpedOutput);
+                warpBilinearRows(lastFeatures, motion, warpedEnd, warpTo, warpedFeatures);
+                warpCatmullRomRows(output, motion, warpedEnd, warpTo, warpedOutput);
                 for (int y = warpedEnd; y < warpTo; ++y)
                     std::copy(valid + std::size_t(y) * width, valid + std::size_t(y + 1) * width,
                               warpedValid.pixel(y % ringRows, 0));
@@ -717,7 +719,9 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     FeatureMap historyEmbedding = s.pool.take(height, width, E);
     FeatureMap historySignal = s.pool.take(height, width, s.signal.channels());
     if (history) {
-        warpBilinear(s.embeddingHistory, s.signalHistory, motion, historyEmbedding, historySignal);
+        // Radiance sharp (a blurred history blurs the output), embeddings bilinear (cheaper).
+        warpBilinear(s.embeddingHistory, motion, historyEmbedding);
+        warpCatmullRom(s.signalHistory, motion, historySignal);
         keepWhereValid(historyEmbedding, embedding, valid);
         keepWhereValid(historySignal, s.signal, valid);
     } else {

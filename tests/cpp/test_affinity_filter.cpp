@@ -9,12 +9,14 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <limits>
 #include <random>
 #include <vector>
 
 #include "affinity/error.h"
 #include "affinity_filter.h"
 #include "bilinear_warp.h"
+#include "catmull_rom_warp.h"
 #include "fast_exp.h"
 
 namespace affinity {
@@ -651,43 +653,6 @@ TEST(WarpBilinear, RowsIntoARingEqualTheWholeImage) {
     EXPECT_THROW(warpBilinearRows(previous, motion.data(), 0, 4, tooShort), Error);
 }
 
-TEST(WarpBilinear, TwoMapsInOnePassEqualTwoSingleWarps) {
-    std::mt19937 rng(29);
-    const int height = 21, width = 27;
-    std::vector<float> motion(std::size_t(height) * width * 2);
-    std::uniform_real_distribution<float> shift(-6.0f, 6.0f);
-    for (float& m : motion) m = shift(rng);
-    // The denoiser's pairs (embedding + signal, features + output) and one of counts no
-    // specialisation knows.
-    for (const auto& [wide, narrow] : std::vector<std::pair<int, int>>{{32, 3}, {16, 12}, {8, 3}, {8, 6}, {5, 7}}) {
-        const FeatureMap first = randomMap(height, width, wide, -3.0f, 3.0f, rng);
-        const FeatureMap second = randomMap(height, width, narrow, -3.0f, 3.0f, rng);
-        FeatureMap firstAlone, secondAlone, firstTogether, secondTogether;
-        warpBilinear(first, motion.data(), firstAlone);
-        warpBilinear(second, motion.data(), secondAlone);
-        warpBilinear(first, second, motion.data(), firstTogether, secondTogether);
-        EXPECT_TRUE(bitwiseEqual(firstTogether, firstAlone)) << wide << " + " << narrow;
-        EXPECT_TRUE(bitwiseEqual(secondTogether, secondAlone)) << wide << " + " << narrow;
-        // Rows into rings, as the temporal kernel warps them.
-        FeatureMap firstRing(5, width, wide), secondRing(5, width, narrow);
-        for (int begin = 0; begin < height; begin += 5) {
-            const int end = std::min(height, begin + 5);
-            warpBilinearRows(first, second, motion.data(), begin, end, firstRing, secondRing);
-            for (int y = begin; y < end; ++y) {
-                ASSERT_EQ(std::memcmp(firstRing.pixel(y % 5, 0), firstAlone.pixel(y, 0), sizeof(float) * wide * width), 0);
-                ASSERT_EQ(std::memcmp(secondRing.pixel(y % 5, 0), secondAlone.pixel(y, 0), sizeof(float) * narrow * width), 0);
-            }
-        }
-    }
-    const FeatureMap first = randomMap(height, width, 8, -3.0f, 3.0f, rng);
-    const FeatureMap otherSize = randomMap(height, width + 1, 3, -3.0f, 3.0f, rng);
-    FeatureMap a, b;
-    EXPECT_THROW(warpBilinear(first, otherSize, motion.data(), a, b), Error);
-    FeatureMap second = randomMap(height, width, 3, -3.0f, 3.0f, rng);
-    EXPECT_THROW(warpBilinear(first, second, motion.data(), second, b), Error);  // would overwrite an input
-    EXPECT_THROW(warpBilinearRows(first, second, motion.data(), 0, height, a, a), Error);
-}
-
 TEST(WarpBilinear, ResultsDoNotDependOnTheThreadCount) {
     std::mt19937 rng(13);
     const FeatureMap previous = randomMap(57, 41, 8, -3.0f, 3.0f, rng);
@@ -702,6 +667,149 @@ TEST(WarpBilinear, ResultsDoNotDependOnTheThreadCount) {
     warpBilinear(previous, motion.data(), two);
     omp_set_num_threads(before);
     EXPECT_TRUE(bitwiseEqual(one, two));
+}
+
+// ---- the sharp warp of the radiance (catmull_rom_warp.h) --------------------------------
+
+// The Catmull-Rom spline through p0..p3 at t in [0, 1] in its polynomial form (not the tap
+// weights the warp uses), in double.
+double catmullRom(double p0, double p1, double p2, double p3, double t) {
+    return 0.5 * (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t * t + (3 * p1 - p0 - 3 * p2 + p3) * t * t * t);
+}
+
+TEST(WarpCatmullRom, IntegerMotionShiftsWithBorderClamping) {
+    std::mt19937 rng(41);
+    const FeatureMap previous = randomMap(11, 14, 3, -3.0f, 3.0f, rng);
+    for (const auto& [mx, my] : std::vector<std::pair<int, int>>{{0, 0}, {2, 0}, {0, -3}, {-5, 4}, {20, -20}}) {
+        FeatureMap out;
+        warpCatmullRom(previous, uniformMotion(11, 14, float(mx), float(my)).data(), out);
+        for (int y = 0; y < 11; ++y)
+            for (int x = 0; x < 14; ++x) {
+                const int sx = std::clamp(x + mx, 0, 13), sy = std::clamp(y + my, 0, 10);
+                for (int c = 0; c < 3; ++c)
+                    ASSERT_EQ(out.pixel(y, x)[c], previous.pixel(sy, sx)[c]) << mx << "," << my << " at " << x << "," << y;
+            }
+    }
+}
+
+TEST(WarpCatmullRom, IsTheClampedBicubicSplineOfTheSixteenTaps) {
+    std::mt19937 rng(43);
+    const int height = 13, width = 16, channels = 5;  // 5: the generic channel loop
+    for (const int count : {3, channels}) {
+        const FeatureMap previous = randomMap(height, width, count, -2.0f, 3.0f, rng);
+        std::vector<float> motion(std::size_t(height) * width * 2);
+        std::uniform_real_distribution<float> shift(-7.0f, 7.0f);
+        for (float& m : motion) m = shift(rng);
+        FeatureMap out;
+        warpCatmullRom(previous, motion.data(), out);
+        auto at = [&](int y, int x, int c) {
+            return double(previous.pixel(std::clamp(y, 0, height - 1), std::clamp(x, 0, width - 1))[c]);
+        };
+        int clamped = 0;
+        for (int y = 0; y < height; ++y)
+            for (int x = 0; x < width; ++x) {
+                const float* m = &motion[2 * (std::size_t(y) * width + x)];
+                const double px = std::clamp(double(x) + double(m[0]), 0.0, double(width - 1));
+                const double py = std::clamp(double(y) + double(m[1]), 0.0, double(height - 1));
+                const int x0 = int(std::floor(px)), y0 = int(std::floor(py));
+                for (int c = 0; c < count; ++c) {
+                    double rows[4];
+                    for (int j = 0; j < 4; ++j)
+                        rows[j] = catmullRom(at(y0 - 1 + j, x0 - 1, c), at(y0 - 1 + j, x0, c), at(y0 - 1 + j, x0 + 1, c),
+                                             at(y0 - 1 + j, x0 + 2, c), px - x0);
+                    const double spline = catmullRom(rows[0], rows[1], rows[2], rows[3], py - y0);
+                    const double low = std::min({at(y0, x0, c), at(y0, x0 + 1, c), at(y0 + 1, x0, c), at(y0 + 1, x0 + 1, c)});
+                    const double high = std::max({at(y0, x0, c), at(y0, x0 + 1, c), at(y0 + 1, x0, c), at(y0 + 1, x0 + 1, c)});
+                    clamped += spline < low || spline > high;
+                    ASSERT_NEAR(out.pixel(y, x)[c], std::clamp(spline, low, high), 2e-5) << x << "," << y << " channel " << c;
+                }
+            }
+        EXPECT_GT(clamped, 0) << "random data should exercise the clamp";
+    }
+}
+
+TEST(WarpCatmullRom, StaysInsideTheRangeOfTheNearestTaps) {
+    // A hard edge between 0 and 1 moved by fractions of a pixel: the cubic alone would ring
+    // below 0 and above 1; radiance must not turn negative.
+    const int height = 6, width = 20;
+    FeatureMap previous(height, width, 3);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x)
+            for (int c = 0; c < 3; ++c) previous.pixel(y, x)[c] = x < 10 ? 0.0f : 1.0f;
+    for (const float mx : {0.25f, 0.5f, 0.75f, -0.3f}) {
+        FeatureMap out;
+        warpCatmullRom(previous, uniformMotion(height, width, mx, 0.4f).data(), out);
+        for (int x = 0; x < width; ++x) {
+            const float v = out.pixel(3, x)[0];
+            EXPECT_GE(v, 0.0f) << mx << " at " << x;
+            EXPECT_LE(v, 1.0f) << mx << " at " << x;
+        }
+    }
+}
+
+TEST(WarpCatmullRom, KeepsFineDetailThatBilinearBlurs) {
+    // Stripes with a 4-pixel period moved half a pixel and back, as a history is resampled
+    // every frame: bilinear halves their contrast, Catmull-Rom keeps most of it.
+    const int height = 4, width = 64;
+    FeatureMap previous(height, width, 3);
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x)
+            for (int c = 0; c < 3; ++c) previous.pixel(y, x)[c] = 1.0f + std::sin(1.5707963f * float(x) + 0.4f);
+    auto roundTripError = [&](auto warp) {
+        FeatureMap there, back;
+        warp(previous, uniformMotion(height, width, 0.5f, 0.0f).data(), there);
+        warp(there, uniformMotion(height, width, -0.5f, 0.0f).data(), back);
+        double error = 0.0;
+        for (int x = 8; x < width - 8; ++x) error += std::abs(back.pixel(2, x)[0] - previous.pixel(2, x)[0]);
+        return error / (width - 16);
+    };
+    const double bilinear = roundTripError([](const FeatureMap& p, const float* m, FeatureMap& o) { warpBilinear(p, m, o); });
+    const double catmullRom = roundTripError([](const FeatureMap& p, const float* m, FeatureMap& o) { warpCatmullRom(p, m, o); });
+    EXPECT_GT(bilinear, 0.25);  // mean |sin| is 0.64: half the contrast lost
+    EXPECT_LT(catmullRom, 0.5 * bilinear) << "bilinear " << bilinear;
+}
+
+TEST(WarpCatmullRom, NanMotionReadsAsNoMotionAndHugeMotionClampsToTheBorder) {
+    std::mt19937 rng(47);
+    const FeatureMap previous = randomMap(7, 9, 3, -3.0f, 3.0f, rng);
+    std::vector<float> motion = uniformMotion(7, 9, 0.0f, 0.0f);
+    motion[2 * (3 * 9 + 4)] = std::nanf("");
+    motion[2 * (5 * 9 + 2) + 1] = 1e30f;
+    motion[2 * (1 * 9 + 1)] = -std::numeric_limits<float>::infinity();
+    FeatureMap out;
+    warpCatmullRom(previous, motion.data(), out);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(out.pixel(3, 4)[c], previous.pixel(3, 4)[c]);
+        EXPECT_EQ(out.pixel(5, 2)[c], previous.pixel(6, 2)[c]);
+        EXPECT_EQ(out.pixel(1, 1)[c], previous.pixel(1, 0)[c]);
+    }
+}
+
+TEST(WarpCatmullRom, RowsIntoARingEqualTheWholeImageOnAnyThreadCount) {
+    std::mt19937 rng(53);
+    const int height = 23, width = 19;
+    const FeatureMap previous = randomMap(height, width, 3, -3.0f, 3.0f, rng);
+    std::vector<float> motion(std::size_t(height) * width * 2);
+    std::uniform_real_distribution<float> shift(-6.0f, 6.0f);
+    for (float& m : motion) m = shift(rng);
+    const int before = omp_get_max_threads();
+    FeatureMap one, whole;
+    omp_set_num_threads(1);
+    warpCatmullRom(previous, motion.data(), one);
+    omp_set_num_threads(2);
+    warpCatmullRom(previous, motion.data(), whole);
+    omp_set_num_threads(before);
+    EXPECT_TRUE(bitwiseEqual(one, whole));
+    FeatureMap ring(4, width, 3);
+    for (int begin = 0; begin < height; begin += 4) {
+        const int end = std::min(height, begin + 4);
+        warpCatmullRomRows(previous, motion.data(), begin, end, ring);
+        for (int y = begin; y < end; ++y)
+            ASSERT_EQ(std::memcmp(ring.pixel(y % 4, 0), whole.pixel(y, 0), sizeof(float) * 3 * width), 0) << "row " << y;
+    }
+    FeatureMap tooShort(3, width, 3);
+    EXPECT_THROW(warpCatmullRomRows(previous, motion.data(), 0, 4, tooShort), Error);
+    EXPECT_THROW(warpCatmullRom(previous, nullptr, whole), Error);
 }
 
 }  // namespace

@@ -603,6 +603,15 @@ TEST(TorchGradients, Warp) {
     expectGradientMatches(loss, motion, {2 * 7 + 3, 3 * 7 + 2, 42 + 2 * 7 + 3, 42 + 4 * 7 + 4}, "warp: motion");
 }
 
+TEST(TorchGradients, CatmullRomWarp) {
+    torch::manual_seed(16);
+    const torch::Tensor previous = leaf(torch::randn({1, 3, 6, 7}, torch::kDouble));
+    const torch::Tensor motion = (torch::rand({1, 2, 6, 7}, torch::kDouble) - 0.5) * 5.0;
+    const torch::Tensor weights = torch::randn({1, 3, 6, 7}, torch::kDouble);
+    auto loss = [&] { return (warpCatmullRom(previous, motion) * weights).sum(); };
+    expectGradientMatches(loss, previous, someIndices(previous.numel(), 20), "catmull-rom warp: buffer");
+}
+
 TEST(TorchGradients, AffinityKernel) {
     torch::manual_seed(12);
     const FilterInputs in = randomFilterInputs(6, 7, 3);
