@@ -6,6 +6,7 @@
 #include <string>
 
 #include "affinity/error.h"
+#include "warp_rows.h"
 
 namespace affinity {
 namespace {
@@ -59,21 +60,14 @@ void blendPixel(const FeatureMap& previous, const Taps& taps, int l, float* out)
 template <int kChannels>
 void warpRows(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output) {
     const int height = previous.height(), width = previous.width();
-#pragma omp parallel for schedule(static)
-    for (int y = begin; y < end; ++y) {
-        float* row = output.pixel(y % output.height(), 0);
-        for (int xBlock = 0; xBlock < width; xBlock += kLanes) {
-            const int count = std::min(kLanes, width - xBlock);
-            Taps taps;
-            findTaps(motion, y, xBlock, count, width, height, taps);
-            for (int l = 0; l < count; ++l)
-                blendPixel<kChannels>(previous, taps, l, row + std::size_t(xBlock + l) * std::size_t(previous.channels()));
-        }
-    }
+    warpRowsInBlocks<Taps, kLanes>(
+        begin, end, width, output,
+        [&](int y, int xBlock, int count, Taps& taps) { findTaps(motion, y, xBlock, count, width, height, taps); },
+        [&](const Taps& taps, int l, float* out) { blendPixel<kChannels>(previous, taps, l, out); });
 }
 
 // The channel counts of today's maps with a constant count: embedding 16 or 32, features 8,
-// signal 3 (RGB).
+// and 3, the RGB images of the metrics' warps.
 void dispatch(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output) {
     switch (previous.channels()) {
         case 3: return warpRows<3>(previous, motion, begin, end, output);

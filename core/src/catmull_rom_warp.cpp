@@ -7,6 +7,7 @@
 
 #include "affinity/error.h"
 #include "bilinear_warp.h"
+#include "warp_rows.h"
 
 namespace affinity {
 namespace {
@@ -84,18 +85,11 @@ void warpPixel(const FeatureMap& previous, const Taps& taps, int l, float* out) 
 
 template <int kChannels>
 void warpRows(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output) {
-    const int height = previous.height(), width = previous.width(), channels = previous.channels();
-#pragma omp parallel for schedule(static)
-    for (int y = begin; y < end; ++y) {
-        float* row = output.pixel(y % output.height(), 0);
-        for (int xBlock = 0; xBlock < width; xBlock += kLanes) {
-            const int count = std::min(kLanes, width - xBlock);
-            Taps taps;
-            findTaps(motion, y, xBlock, count, width, height, taps);
-            for (int l = 0; l < count; ++l)
-                warpPixel<kChannels>(previous, taps, l, row + std::size_t(xBlock + l) * std::size_t(channels));
-        }
-    }
+    const int height = previous.height(), width = previous.width();
+    warpRowsInBlocks<Taps, kLanes>(
+        begin, end, width, output,
+        [&](int y, int xBlock, int count, Taps& taps) { findTaps(motion, y, xBlock, count, width, height, taps); },
+        [&](const Taps& taps, int l, float* out) { warpPixel<kChannels>(previous, taps, l, out); });
 }
 
 }  // namespace

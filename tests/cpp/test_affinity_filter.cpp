@@ -564,6 +564,14 @@ std::vector<float> uniformMotion(int height, int width, float mx, float my) {
     return motion;
 }
 
+// Motion vectors drawn uniformly in [-range, range] pixels, both coordinates.
+std::vector<float> randomMotion(int height, int width, float range, std::mt19937& rng) {
+    std::vector<float> motion(std::size_t(height) * width * 2);
+    std::uniform_real_distribution<float> shift(-range, range);
+    for (float& m : motion) m = shift(rng);
+    return motion;
+}
+
 TEST(WarpBilinear, ZeroMotionIsTheIdentity) {
     std::mt19937 rng(11);
     const FeatureMap previous = randomMap(13, 17, 5, -3.0f, 3.0f, rng);
@@ -637,9 +645,7 @@ TEST(WarpBilinear, RowsIntoARingEqualTheWholeImage) {
     std::mt19937 rng(23);
     const int height = 23, width = 19;
     const FeatureMap previous = randomMap(height, width, 5, -3.0f, 3.0f, rng);
-    std::vector<float> motion(std::size_t(height) * width * 2);
-    std::uniform_real_distribution<float> shift(-6.0f, 6.0f);
-    for (float& m : motion) m = shift(rng);
+    const std::vector<float> motion = randomMotion(height, width, 6.0f, rng);
     FeatureMap whole;
     warpBilinear(previous, motion.data(), whole);
     FeatureMap ring(4, width, 5);
@@ -656,9 +662,7 @@ TEST(WarpBilinear, RowsIntoARingEqualTheWholeImage) {
 TEST(WarpBilinear, ResultsDoNotDependOnTheThreadCount) {
     std::mt19937 rng(13);
     const FeatureMap previous = randomMap(57, 41, 8, -3.0f, 3.0f, rng);
-    std::vector<float> motion(std::size_t(57) * 41 * 2);
-    std::uniform_real_distribution<float> uniform(-6.0f, 6.0f);
-    for (float& m : motion) m = uniform(rng);
+    const std::vector<float> motion = randomMotion(57, 41, 6.0f, rng);
     const int before = omp_get_max_threads();
     FeatureMap one, two;
     omp_set_num_threads(1);
@@ -697,9 +701,7 @@ TEST(WarpCatmullRom, IsTheClampedBicubicSplineOfTheSixteenTaps) {
     const int height = 13, width = 16, channels = 5;  // 5: the generic channel loop
     for (const int count : {3, channels}) {
         const FeatureMap previous = randomMap(height, width, count, -2.0f, 3.0f, rng);
-        std::vector<float> motion(std::size_t(height) * width * 2);
-        std::uniform_real_distribution<float> shift(-7.0f, 7.0f);
-        for (float& m : motion) m = shift(rng);
+        const std::vector<float> motion = randomMotion(height, width, 7.0f, rng);
         FeatureMap out;
         warpCatmullRom(previous, motion.data(), out);
         auto at = [&](int y, int x, int c) {
@@ -789,9 +791,7 @@ TEST(WarpCatmullRom, RowsIntoARingEqualTheWholeImageOnAnyThreadCount) {
     std::mt19937 rng(53);
     const int height = 23, width = 19;
     const FeatureMap previous = randomMap(height, width, 3, -3.0f, 3.0f, rng);
-    std::vector<float> motion(std::size_t(height) * width * 2);
-    std::uniform_real_distribution<float> shift(-6.0f, 6.0f);
-    for (float& m : motion) m = shift(rng);
+    const std::vector<float> motion = randomMotion(height, width, 6.0f, rng);
     const int before = omp_get_max_threads();
     FeatureMap one, whole;
     omp_set_num_threads(1);
