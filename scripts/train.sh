@@ -11,6 +11,8 @@
 # ends the run), MINUTES (160; 0: no limit), BATCH (4), LR_HALF_LIFE (1200), THREADS (2), SEED (1),
 # DEVICE (cpu; cuda with a CUDA build of libtorch), EXPORT (weights file to write, default
 # $RUN/exported.affw; core/models/default.affw replaces the built-in model at the next build).
+# OpenMP's default wait policy (workers spin briefly before sleeping): with OMP_WAIT_POLICY=passive a
+# step takes about twice as long (docs/TRAINING.md, "Threads that sleep between ops").
 # Data settings: see scripts/make_training_data.sh (TRAIN_SEEDS, default here 1000-1399, JOBS, ...).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
@@ -24,7 +26,7 @@ trainer=$root/build/training/affinity_train
 [ -x "$trainer" ] || { echo "train.sh: build it first: cmake --build build -j2 --target affinity_train affinity" >&2; exit 1; }
 
 "$root/scripts/make_training_data.sh"
-OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-passive} "$trainer" --data "$AFFINITY_DATA" --out "$run" --preset "$preset" \
+"$trainer" --data "$AFFINITY_DATA" --out "$run" --preset "$preset" \
   --steps "${STEPS:-100000}" --minutes "${MINUTES:-160}" --batch "${BATCH:-4}" --crop 64 --frames 6 \
   --lr 1e-3 --lr-half-life "${LR_HALF_LIFE:-1200}" --val-every 100 --checkpoint-every 100 \
   --threads "${THREADS:-2}" --device "${DEVICE:-cpu}" --seed "${SEED:-1}" --export "$export_path" "$@"

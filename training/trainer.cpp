@@ -13,6 +13,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
+#include <cstdlib>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
@@ -293,6 +294,11 @@ TrainSummary runTraining(const TrainOptions& options) {
     auto say = [&](const std::string& text) {
         if (!options.quiet) std::cout << text << std::endl;
     };
+    // libtorch's CPU ops each open an OpenMP region; with sleeping workers every region pays a
+    // futex wake-up, and a step of our many small ops took twice as long (docs/TRAINING.md).
+    const char* waitPolicy = std::getenv("OMP_WAIT_POLICY");
+    if (options.threads > 1 && options.device == "cpu" && waitPolicy && std::string(waitPolicy) == "passive")
+        say("note: OMP_WAIT_POLICY=passive makes CPU training steps about twice as slow; unset it for a training run");
     fs::create_directories(options.outDir);
     const fs::path out(options.outDir);
 
