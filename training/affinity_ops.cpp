@@ -9,6 +9,7 @@
 
 #include "affinity/error.h"
 #include "affinity/features.h"
+#include "fused_affinity_filter.h"
 
 namespace affinity::train {
 namespace {
@@ -260,33 +261,43 @@ at::Tensor upsampleNearest(const at::Tensor& input, std::int64_t height, std::in
     return input.index_select(2, rows).index_select(3, cols);
 }
 
+at::Tensor affinityFilterUnfused(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                                 const TemporalTaps* temporal) {
+    checkImage(radiance, "the filtered signal", 0);
+    WeightedSum sum = spatialSum(radiance, kernel, tapSize, dilation);
+    if (temporal) {
+        checkImage(temporal->output, "the warped output", radiance.size(1));
+        const std::int64_t height = radiance.size(2), width = radiance.size(3);
+        const std::vector<std::int64_t> padding{1, 1, 1, 1};
+        const at::Tensor paddedOutput = at::constant_pad_nd(temporal->output, padding, 0);
+        const at::Tensor paddedFeatures = at::constant_pad_nd(temporal->features, padding, 0);
+        const at::Tensor paddedValid = at::constant_pad_nd(temporal->valid, padding, 0);  // outside = invalid
+        const at::Tensor negativeB2 = -(temporal->bandwidth * temporal->bandwidth);
+        for (std::int64_t dy = -1; dy <= 1; ++dy) {
+            for (std::int64_t dx = -1; dx <= 1; ++dx) {
+                const at::Tensor neighbour = shifted(paddedFeatures, 1, dy, dx, height, width);
+                const at::Tensor weight = shifted(paddedValid, 1, dy, dx, height, width) *
+                                          at::exp(negativeB2 * squaredDistance(kernel.features, neighbour));
+                sum.numerator = sum.numerator + weight * shifted(paddedOutput, 1, dy, dx, height, width);
+                sum.denominator = sum.denominator + weight;
+            }
+        }
+    }
+    return sum.numerator / (sum.denominator + kAffinityEpsilon);
+}
+
 at::Tensor affinityFilter(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation) {
     checkImage(radiance, "the filtered signal", 0);
-    const WeightedSum sum = spatialSum(radiance, kernel, tapSize, dilation);
-    return sum.numerator / (sum.denominator + kAffinityEpsilon);
+    if (fusedAffinityFilterApplies(radiance)) return fusedAffinityFilter(radiance, kernel, tapSize, dilation, nullptr);
+    return affinityFilterUnfused(radiance, kernel, tapSize, dilation, nullptr);
 }
 
 at::Tensor affinityFilterTemporal(const at::Tensor& radiance, const KernelParams& kernel, int tapSize,
                                   int dilation, const TemporalTaps& temporal) {
     checkImage(radiance, "the filtered signal", 0);
     checkImage(temporal.output, "the warped output", radiance.size(1));
-    WeightedSum sum = spatialSum(radiance, kernel, tapSize, dilation);
-    const std::int64_t height = radiance.size(2), width = radiance.size(3);
-    const std::vector<std::int64_t> padding{1, 1, 1, 1};
-    const at::Tensor paddedOutput = at::constant_pad_nd(temporal.output, padding, 0);
-    const at::Tensor paddedFeatures = at::constant_pad_nd(temporal.features, padding, 0);
-    const at::Tensor paddedValid = at::constant_pad_nd(temporal.valid, padding, 0);  // outside = invalid
-    const at::Tensor negativeB2 = -(temporal.bandwidth * temporal.bandwidth);
-    for (std::int64_t dy = -1; dy <= 1; ++dy) {
-        for (std::int64_t dx = -1; dx <= 1; ++dx) {
-            const at::Tensor neighbour = shifted(paddedFeatures, 1, dy, dx, height, width);
-            const at::Tensor weight = shifted(paddedValid, 1, dy, dx, height, width) *
-                                      at::exp(negativeB2 * squaredDistance(kernel.features, neighbour));
-            sum.numerator = sum.numerator + weight * shifted(paddedOutput, 1, dy, dx, height, width);
-            sum.denominator = sum.denominator + weight;
-        }
-    }
-    return sum.numerator / (sum.denominator + kAffinityEpsilon);
+    if (fusedAffinityFilterApplies(radiance)) return fusedAffinityFilter(radiance, kernel, tapSize, dilation, &temporal);
+    return affinityFilterUnfused(radiance, kernel, tapSize, dilation, &temporal);
 }
 
 }  // namespace affinity::train

@@ -88,10 +88,15 @@ struct TemporalTaps {
 inline constexpr double kAffinityEpsilon = 1e-8;
 
 // One dilated spatial kernel (section 6) on a signal [B, C, H, W] (C = 3 or 6): tapSize x tapSize taps at
-// the given dilation, out-of-image taps skipped.
+// the given dilation, out-of-image taps skipped. On the CPU the fused op of
+// fused_affinity_filter.h, elsewhere affinityFilterUnfused.
 at::Tensor affinityFilter(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation);
 // The last kernel (section 7): the spatial taps plus 3x3 temporal taps in one normalised sum.
 at::Tensor affinityFilterTemporal(const at::Tensor& radiance, const KernelParams& kernel, int tapSize,
                                   int dilation, const TemporalTaps& temporal);
+// The same kernels in ATen ops (about ten per tap) on any device, with temporal taps where
+// `temporal` is given: what runs off the CPU, and what the fused op is tested against.
+at::Tensor affinityFilterUnfused(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                                 const TemporalTaps* temporal);
 
 }  // namespace affinity::train
