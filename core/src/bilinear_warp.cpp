@@ -24,10 +24,12 @@ void findTaps(const float* motion, int y, int xBlock, int count, int width, int 
     const float* m = motion + 2 * (std::size_t(y) * std::size_t(width) + std::size_t(xBlock));
 #pragma omp simd
     for (int l = 0; l < count; ++l) {
-        // Clamping the position to one pixel beyond the border first keeps the integer
-        // conversion defined for any motion (even NaN or huge values) and changes
-        // nothing: both taps clamp to the border pixel there anyway.
-        float sx = float(xBlock + l) + m[2 * l], sy = float(y) + m[2 * l + 1];
+        // NaN motion reads as no motion (as in the Catmull-Rom warp and the training
+        // framework's). Clamping the position to one pixel beyond the border first keeps the
+        // integer conversion defined for infinite or huge motion and changes nothing: both
+        // taps clamp to the border pixel there anyway.
+        const float mx = m[2 * l], my = m[2 * l + 1];
+        float sx = float(xBlock + l) + (mx == mx ? mx : 0.0f), sy = float(y) + (my == my ? my : 0.0f);
         sx = sx >= -1.0f ? (sx <= float(width) ? sx : float(width)) : -1.0f;
         sy = sy >= -1.0f ? (sy <= float(height) ? sy : float(height)) : -1.0f;
         const float floorX = std::floor(sx), floorY = std::floor(sy);

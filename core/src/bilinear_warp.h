@@ -6,8 +6,8 @@
 
 namespace affinity {
 
-// output(p) = bilinear lookup of `previous` at (x + motion.x, y + motion.y), border-clamped.
-// motion: height x width x 2 floats (frame layout).
+// output(p) = bilinear lookup of `previous` at (x + motion.x, y + motion.y), border-clamped;
+// NaN motion reads as 0. motion: height x width x 2 floats (frame layout).
 void warpBilinear(const FeatureMap& previous, const float* motion, FeatureMap& output);
 
 // Rows [begin, end) of the above into `output`, a ring of the previous map's width and channels

@@ -641,6 +641,25 @@ TEST(WarpBilinear, ClampsTheContinuousPositionAtTheBorder) {
     for (std::size_t i = 0; i < out.size(); ++i) EXPECT_TRUE(std::isfinite(out.data()[i]));
 }
 
+// As the Catmull-Rom warp and the training framework's warps read it.
+TEST(WarpBilinear, NanMotionReadsAsNoMotionAndHugeMotionClampsToTheBorder) {
+    std::mt19937 rng(59);
+    const FeatureMap previous = randomMap(7, 9, 3, -3.0f, 3.0f, rng);
+    std::vector<float> motion = uniformMotion(7, 9, 0.25f, 0.0f);
+    motion[2 * (3 * 9 + 4)] = std::nanf("");        // x NaN: no motion in x
+    motion[2 * (2 * 9 + 6) + 1] = std::nanf("");    // y NaN: x still moves a quarter pixel
+    motion[2 * (5 * 9 + 2) + 1] = 1e30f;
+    motion[2 * (1 * 9 + 1)] = -std::numeric_limits<float>::infinity();
+    FeatureMap out;
+    warpBilinear(previous, motion.data(), out);
+    for (int c = 0; c < 3; ++c) {
+        EXPECT_EQ(out.pixel(3, 4)[c], previous.pixel(3, 4)[c]);
+        EXPECT_FLOAT_EQ(out.pixel(2, 6)[c], 0.75f * previous.pixel(2, 6)[c] + 0.25f * previous.pixel(2, 7)[c]);
+        EXPECT_FLOAT_EQ(out.pixel(5, 2)[c], 0.75f * previous.pixel(6, 2)[c] + 0.25f * previous.pixel(6, 3)[c]);
+        EXPECT_EQ(out.pixel(1, 1)[c], previous.pixel(1, 0)[c]);
+    }
+}
+
 TEST(WarpBilinear, RowsIntoARingEqualTheWholeImage) {
     std::mt19937 rng(23);
     const int height = 23, width = 19;
