@@ -10,6 +10,7 @@
 #include "affinity/error.h"
 #include "affinity/features.h"
 #include "fused_affinity_filter.h"
+#include "fused_warps.h"
 
 namespace affinity::train {
 namespace {
@@ -193,7 +194,7 @@ WarpTargets warpTargets(const at::Tensor& motion) {
     return {clean.select(1, 0) + xs, clean.select(1, 1) + ys};
 }
 
-at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
+at::Tensor warpBilinearUnfused(const at::Tensor& previous, const at::Tensor& motion) {
     checkImage(previous, "the warped buffer", 0);
     const std::int64_t batch = previous.size(0), channels = previous.size(1);
     const std::int64_t height = previous.size(2), width = previous.size(3);
@@ -216,7 +217,7 @@ at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
     return top * (1 - fy) + bottom * fy;
 }
 
-at::Tensor warpCatmullRom(const at::Tensor& previous, const at::Tensor& motion) {
+at::Tensor warpCatmullRomUnfused(const at::Tensor& previous, const at::Tensor& motion) {
     checkImage(previous, "the warped buffer", 0);
     const std::int64_t batch = previous.size(0), channels = previous.size(1);
     const std::int64_t height = previous.size(2), width = previous.size(3);
@@ -250,6 +251,16 @@ at::Tensor warpCatmullRom(const at::Tensor& previous, const at::Tensor& motion) 
     const at::Tensor low = at::minimum(at::minimum(p00, p01), at::minimum(p10, p11));
     const at::Tensor high = at::maximum(at::maximum(p00, p01), at::maximum(p10, p11));
     return at::clamp(sum, low, high);
+}
+
+at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
+    if (fusedWarpApplies(previous, motion)) return fusedWarpBilinear(previous, motion);
+    return warpBilinearUnfused(previous, motion);
+}
+
+at::Tensor warpCatmullRom(const at::Tensor& previous, const at::Tensor& motion) {
+    if (fusedWarpApplies(previous, motion.detach())) return fusedWarpCatmullRom(previous, motion.detach());
+    return warpCatmullRomUnfused(previous, motion);
 }
 
 at::Tensor maxPool2x2(const at::Tensor& input) { return at::max_pool2d(input, {2, 2}, {2, 2}, {0, 0}, {1, 1}, true); }

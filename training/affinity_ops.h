@@ -53,6 +53,11 @@ at::Tensor warpBilinear(const at::Tensor& previous, const at::Tensor& motion);
 // history and the previous output. Gradients flow to `previous`; motion is data.
 at::Tensor warpCatmullRom(const at::Tensor& previous, const at::Tensor& motion);
 
+// The two warps above in ATen ops (gathers), on any device and with gradients to motion:
+// what runs where the fused CPU ops of fused_warps.h do not, and their test reference.
+at::Tensor warpBilinearUnfused(const at::Tensor& previous, const at::Tensor& motion);
+at::Tensor warpCatmullRomUnfused(const at::Tensor& previous, const at::Tensor& motion);
+
 // Where warpBilinear looks in the previous frame, before clamping: x + motion_x and y + motion_y,
 // each [B, H, W] (non-finite motion reads as 0).
 struct WarpTargets {
