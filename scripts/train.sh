@@ -2,22 +2,26 @@
 # One command for a full training (docs/TRAINING.md): renders the data cache if needed, trains,
 # plots the loss curves, exports the best weights and evaluates them against the noisy input.
 #   scripts/train.sh [extra affinity_train options, e.g. --albedo-demodulation]
-# The defaults are a full CPU training of the small preset: crops of 4 x 64x64 x 6 frames per
-# step, 160 minutes of training after the data (400 sequences, about 17 minutes to render on 2
-# cores), so that the whole command ends within 3 hours on a 2-core machine (docs/TRAINING.md,
-# "A full CPU training"; the shipped default itself was trained on a GPU).
-# Environment: AFFINITY_DATA (data cache, default $HOME/.cache/affinity/data-v1), RUN (output
+# The defaults are the shipped default model's recipe from scratch on the CPU (docs/TRAINING.md,
+# "One command from scratch"): preset small; 220 procedural and 40 "sparks" sequences rendered
+# at 16 spp with 256-spp targets and 8 validation sequences (about 18 minutes on 2 cores); crops
+# of 4 x 64x64 x 6 frames at 2-8 spp per step; the loss SMAPE + 0.5 temporal SMAPE + coarse
+# SMAPE + 0.1 warped absolute temporal error; 155 minutes of training, so that the whole command
+# ends within 3 hours on a 2-core machine that does nothing else meanwhile (a build or a second
+# trainer beside it slows it several times over).
+# Environment: AFFINITY_DATA (data cache, default $HOME/.cache/affinity/data-v2), RUN (output
 # folder, default $AFFINITY_DATA/../runs/<preset>), PRESET (small), STEPS (100000: the time limit
-# ends the run), MINUTES (160; 0: no limit), BATCH (4), LR_HALF_LIFE (1200), THREADS (2), SEED (1),
+# ends the run), MINUTES (155; 0: no limit), BATCH (4), LR_HALF_LIFE (3000), THREADS (2), SEED (1),
 # DEVICE (cpu; cuda with a CUDA build of libtorch), EXPORT (weights file to write, default
 # $RUN/exported.affw; core/models/default.affw replaces the built-in model at the next build).
 # OpenMP's default wait policy (workers spin briefly before sleeping): with OMP_WAIT_POLICY=passive a
 # step takes about twice as long (docs/TRAINING.md, "Threads that sleep between ops").
-# Data settings: see scripts/make_training_data.sh (TRAIN_SEEDS, default here 1000-1399, JOBS, ...).
+# Data settings: see scripts/make_training_data.sh (TRAIN_SEEDS, SPP, JOBS, ...; defaults below).
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
-export AFFINITY_DATA=${AFFINITY_DATA:-$HOME/.cache/affinity/data-v1}
-export TRAIN_SEEDS=${TRAIN_SEEDS:-1000-1399}
+export AFFINITY_DATA=${AFFINITY_DATA:-$HOME/.cache/affinity/data-v2}
+export TRAIN_SEEDS=${TRAIN_SEEDS:-1000-1219} SPARK_TRAIN_SEEDS=${SPARK_TRAIN_SEEDS:-1300-1339}
+export VAL_SEEDS=${VAL_SEEDS:-9000-9007} SPP=${SPP:-16} TRAIN_REFERENCE_SPP=${TRAIN_REFERENCE_SPP:-256}
 export JOBS=${JOBS:-2} COMPRESSION=${COMPRESSION:-none}
 preset=${PRESET:-small}
 run=${RUN:-$(dirname "$AFFINITY_DATA")/runs/$preset}
@@ -27,8 +31,9 @@ trainer=$root/build/training/affinity_train
 
 "$root/scripts/make_training_data.sh"
 "$trainer" --data "$AFFINITY_DATA" --out "$run" --preset "$preset" \
-  --steps "${STEPS:-100000}" --minutes "${MINUTES:-160}" --batch "${BATCH:-4}" --crop 64 --frames 6 \
-  --lr 1e-3 --lr-half-life "${LR_HALF_LIFE:-1200}" --val-every 100 --checkpoint-every 100 \
+  --steps "${STEPS:-100000}" --minutes "${MINUTES:-155}" --batch "${BATCH:-4}" --crop 64 --frames 6 \
+  --lr 1e-3 --lr-half-life "${LR_HALF_LIFE:-3000}" --val-every 200 --checkpoint-every 200 \
+  --coarse-weight 1 --temporal-weight 0.5 --warped-temporal --absolute-temporal-weight 0.1 \
   --threads "${THREADS:-2}" --device "${DEVICE:-cpu}" --seed "${SEED:-1}" --export "$export_path" "$@"
 python=$root/.venv/bin/python
 [ -x "$python" ] || python=python3
