@@ -16,6 +16,16 @@ inline constexpr double kTemporalWeight = 0.25;
 // lands inside the crop: the change a still camera would see, so the term measures flicker and
 // not the image moving.
 //
+// With boundedAbsoluteTemporal each pixel's |dt O - dt O*| is divided by its own reference
+// brightness plus the crop's mean, per channel:
+//   mean ( |dt O - dt O*| / (|O*| + mean |O*| + 0.01) )
+// The plain form lets one pixel own the term: a spark thousands of times brighter than its
+// crop, whose value the few samples of a frame cannot pin down, flickers by more than the rest
+// of the crop together, and a model trained on it learns to smear the spark's light over its
+// neighbours, where it then flickers less per pixel (a halo: docs/TRAINING.md, "Sparks in the
+// training data"). Bounded, a pixel's share is at most its relative change, while flicker in
+// the crop's ordinary and dark pixels still counts by its size against the crop's brightness.
+//
 // The coarse term is SMAPE(C O, C O*), C the mean over cells of coarseCell x coarseCell pixels
 // (partial cells at the crop's edge averaged over their pixels). Pixel SMAPE is minimised by the
 // median of what the input allows, and against a noisy (Noise2Noise) target by the median of
@@ -29,6 +39,7 @@ struct LossWeights {
     bool warpedTemporal = false;
     double coarse = 0;
     int coarseCell = 8;
+    bool boundedAbsoluteTemporal = false;
 };
 
 }  // namespace affinity::train

@@ -38,11 +38,15 @@ struct TemporalPair {
         const at::Tensor error = (change - referenceChange).abs() / (change.abs() + referenceChange.abs() + kSmapeEpsilon);
         return maskedMean(error, {0, 1, 2, 3});
     }
-    // mean |dt O - dt O*| / (mean |O*| + 0.01), the means taken per crop of the batch.
-    at::Tensor absolute(const at::Tensor& reference) const {
+    // mean |dt O - dt O*| / (mean |O*| + 0.01), the means taken per crop of the batch; bounded:
+    // mean (|dt O - dt O*| / (|O*| + mean |O*| + 0.01)) (loss_weights.h).
+    at::Tensor absolute(const at::Tensor& reference, bool bounded) const {
         const std::vector<std::int64_t> perCrop{1, 2, 3};
-        const at::Tensor brightness = reference.abs().mean(perCrop) + kSmapeEpsilon;
-        return (maskedMean((change - referenceChange).abs(), perCrop) / brightness).mean();
+        const at::Tensor magnitude = reference.abs();
+        const at::Tensor brightness = magnitude.mean(perCrop, /*keepdim=*/true) + kSmapeEpsilon;
+        const at::Tensor difference = (change - referenceChange).abs();
+        if (bounded) return maskedMean(difference / (magnitude + brightness), perCrop).mean();
+        return (maskedMean(difference, perCrop) / brightness.flatten()).mean();
     }
 };
 
@@ -89,7 +93,7 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
                 pair = {outputs[t] - outputs[t - 1], references[t] - references[t - 1], at::Tensor()};
             }
             temporal = temporal + pair.smape();
-            if (weights.absoluteTemporal != 0) absoluteTemporal = absoluteTemporal + pair.absolute(references[t]);
+            if (weights.absoluteTemporal != 0) absoluteTemporal = absoluteTemporal + pair.absolute(references[t], weights.boundedAbsoluteTemporal);
         }
         if (!bandwidths.empty()) {
             for (const at::Tensor& bandwidth : bandwidths[t]) regulariser = regulariser + bandwidth.square().mean();

@@ -35,6 +35,8 @@ constexpr const char* kUsage =
     "  --temporal-weight W weight of the temporal SMAPE term (0.25, the paper's)\n"
     "  --absolute-temporal-weight W  weight of mean |dt O - dt O*| / mean |O*| (0; train_loss.h)\n"
     "  --warped-temporal   dt O = O_t - O_{t-1} warped by the motion, valid pixels only (train_loss.h)\n"
+    "  --bounded-absolute-temporal  divide each pixel's absolute temporal error by its own reference\n"
+    "                      brightness plus the crop's mean, so no spark owns the term (loss_weights.h)\n"
     "  --coarse-weight W   weight of SMAPE of cell means, against dark bias (0; train_loss.h)\n"
     "  --coarse-cell N     cell side of that term, pixels (8)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
@@ -65,6 +67,10 @@ int main(int argc, char** argv) {
             }
             if (flag == "--warped-temporal") {
                 options.loss.warpedTemporal = true;
+                continue;
+            }
+            if (flag == "--bounded-absolute-temporal") {
+                options.loss.boundedAbsoluteTemporal = true;
                 continue;
             }
             if (flag == "--spp-log-uniform") {

@@ -29,11 +29,12 @@ namespace {
 // Every term switched on, with weights unlike the defaults, so the gradient check covers them all.
 // Coarse cells of 2 pixels on 4 x 3 images: the right column is a partial cell.
 const train::LossWeights kAllTerms{0.5, 0.3, true, 0.7, 2};
+const train::LossWeights kAllTermsBounded{0.5, 0.3, true, 0.7, 2, true};
 
 double lossValue(const std::vector<torch::Tensor>& outputs, const std::vector<torch::Tensor>& references,
                  const std::vector<std::vector<torch::Tensor>>& bandwidths,
-                 const std::vector<train::FrameMotion>& motions) {
-    return train::sequenceLoss(outputs, references, bandwidths, kAllTerms, motions).total.item<double>();
+                 const std::vector<train::FrameMotion>& motions, const train::LossWeights& weights) {
+    return train::sequenceLoss(outputs, references, bandwidths, weights, motions).total.item<double>();
 }
 
 }  // namespace
@@ -109,6 +110,27 @@ TEST(TrainingLoss, AbsoluteTemporalTermWeighsFlickerBySizePerCropBrightness) {
                 1e-6);
 }
 
+TEST(TrainingLoss, BoundedAbsoluteTemporalTermCountsEachPixelAgainstItsOwnBrightness) {
+    // The crops of the test above. Crop 0 (uniform): every pixel's reference is the mean, so
+    // each counts 0.5 / (1.5 + 1.5 + 0.01). Crop 1: the lamp's flicker of 20 counts against its
+    // own 100 plus the crop's mean of 25, in one of 4 pixels (all 3 channels).
+    torch::Tensor o0 = torch::zeros({2, 3, 2, 2}), o1 = torch::zeros({2, 3, 2, 2});
+    torch::Tensor r0 = torch::zeros({2, 3, 2, 2}), r1 = torch::zeros({2, 3, 2, 2});
+    o0[0].fill_(1.0), o1[0].fill_(2.0), r0[0].fill_(1.0), r1[0].fill_(1.5);
+    o0[1].select(1, 0).select(1, 0).fill_(100.0), o1[1].select(1, 0).select(1, 0).fill_(120.0);
+    r0[1].select(1, 0).select(1, 0).fill_(100.0), r1[1].select(1, 0).select(1, 0).fill_(100.0);
+    train::LossWeights bounded{0.25, 2.0};
+    bounded.boundedAbsoluteTemporal = true;
+    const train::LossTerms terms = train::sequenceLoss({o0, o1}, {r0, r1}, {}, bounded);
+    const double crop0 = 0.5 / (1.5 + 1.5 + 0.01);
+    const double crop1 = (20.0 / (100.0 + 25.0 + 0.01)) / 4;  // 0.04; the plain form's 0.2
+    EXPECT_NEAR(terms.absoluteTemporal.item<double>(), (crop0 + crop1) / 2, 1e-6);
+    EXPECT_NEAR(terms.total.item<double>(),
+                terms.spatial.item<double>() + 0.25 * terms.temporal.item<double>() +
+                    2.0 * terms.absoluteTemporal.item<double>(),
+                1e-6);
+}
+
 TEST(TrainingLoss, WarpedTemporalTermsWithoutMotionEqualThePlainOnes) {
     torch::manual_seed(4);
     std::vector<torch::Tensor> outputs, references;
@@ -159,7 +181,10 @@ TEST(TrainingLoss, WarpedTemporalTermsIgnoreMotionAndCountOnlyPixelsWithHistory)
     EXPECT_NEAR(one.temporal.item<double>(), 3 * (1.0 / 1.01) / (3 * 19.0), 1e-5);
 }
 
-TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
+class TrainingLossGradient : public testing::TestWithParam<train::LossWeights> {};
+
+TEST_P(TrainingLossGradient, MatchesFiniteDifferences) {
+    const train::LossWeights& weights = GetParam();
     torch::manual_seed(5);
     const auto options = torch::TensorOptions().dtype(torch::kDouble);
     std::vector<torch::Tensor> outputs, references;
@@ -172,7 +197,7 @@ TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
         bandwidths.push_back({(torch::randn({2, 1, 4, 3}, options) * 30).requires_grad_(true),
                               (torch::randn({2, 1, 4, 3}, options) * 30).requires_grad_(true)});
     }
-    train::sequenceLoss(outputs, references, bandwidths, kAllTerms, motions).total.backward();
+    train::sequenceLoss(outputs, references, bandwidths, weights, motions).total.backward();
     const double step = 1e-6;
     auto check = [&](torch::Tensor& tensor) {
         const torch::Tensor gradient = tensor.grad().clone();
@@ -181,9 +206,9 @@ TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
         for (std::int64_t i = 0; i < flat.numel(); i += 5) {
             const double saved = flat[i].item<double>();
             flat[i].fill_(saved + step);
-            const double plus = lossValue(outputs, references, bandwidths, motions);
+            const double plus = lossValue(outputs, references, bandwidths, motions, weights);
             flat[i].fill_(saved - step);
-            const double minus = lossValue(outputs, references, bandwidths, motions);
+            const double minus = lossValue(outputs, references, bandwidths, motions, weights);
             flat[i].fill_(saved);
             const double numeric = (plus - minus) / (2 * step);
             EXPECT_NEAR(gradient.view({-1})[i].item<double>(), numeric, 1e-6 + 1e-4 * std::abs(numeric)) << i;
@@ -193,6 +218,11 @@ TEST(TrainingLoss, GradientMatchesFiniteDifferences) {
     for (auto& frame : bandwidths)
         for (auto& tensor : frame) check(tensor);
 }
+
+INSTANTIATE_TEST_SUITE_P(EveryTerm, TrainingLossGradient, testing::Values(kAllTerms, kAllTermsBounded),
+                         [](const testing::TestParamInfo<train::LossWeights>& test) {
+                             return test.param.boundedAbsoluteTemporal ? "BoundedAbsolute" : "PlainAbsolute";
+                         });
 
 // Augmentation keeps the physics: warping the transformed previous frame with the transformed
 // motion gives the transformed warp, for all 8 rotations / reflections with a colour permutation.
