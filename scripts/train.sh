@@ -6,12 +6,16 @@
 # "One command from scratch"): preset small; 220 procedural and 40 "sparks" sequences rendered
 # at 16 spp with 256-spp targets and 8 validation sequences (about 18 minutes on 2 cores); crops
 # of 4 x 64x64 x 6 frames at 2-8 spp per step; the loss SMAPE + 0.5 temporal SMAPE + coarse
-# SMAPE + 0.2 bounded warped absolute temporal error; 90 minutes of training, so that the whole
-# command takes about 2 hours on a 2-core machine that does nothing else meanwhile (a build or a
-# second trainer beside it slows it several times over).
+# SMAPE + 0.2 bounded warped absolute temporal error. The whole command keeps to BUDGET minutes
+# (170): the training gets what the data step left, less 10 minutes for the evaluation, so a
+# slow host (rendering the data took 18 minutes on the Intel host of 2026-12-04, 46 on the AMD
+# EPYC (Zen 1) host of the evening) trains for less rather than running past 3 hours. The
+# machine must do nothing else meanwhile: a build, a benchmark or a second trainer beside it
+# slows each step several times over, even at the lowest scheduling class (docs/TRAINING.md).
 # Environment: AFFINITY_DATA (data cache, default $HOME/.cache/affinity/data-v2), RUN (output
 # folder, default $AFFINITY_DATA/../runs/<preset>), PRESET (small), STEPS (100000: the time limit
-# ends the run), MINUTES (90; 0: no limit), BATCH (4), LR_HALF_LIFE (2000), THREADS (2), SEED (1),
+# ends the run), MINUTES (training minutes; default: what BUDGET leaves; 0: no limit), BATCH (4),
+# LR_HALF_LIFE (2000), THREADS (2), SEED (1),
 # DEVICE (cpu; cuda with a CUDA build of libtorch), EXPORT (weights file to write, default
 # $RUN/exported.affw; core/models/default.affw replaces the built-in model at the next build).
 # OpenMP's default wait policy (workers spin briefly before sleeping): with OMP_WAIT_POLICY=passive a
@@ -30,8 +34,15 @@ trainer=$root/build/training/affinity_train
 [ -x "$trainer" ] || { echo "train.sh: build it first: cmake --build build -j2 --target affinity_train affinity" >&2; exit 1; }
 
 "$root/scripts/make_training_data.sh"
+budget=${BUDGET:-170}
+minutes=${MINUTES:-$(( budget - SECONDS / 60 - 10 ))}
+if [ "$minutes" -lt 10 ] && [ -z "${MINUTES:-}" ]; then
+  echo "train.sh: the data step used $((SECONDS / 60)) of the $budget minutes; $minutes left for training (set MINUTES or BUDGET)" >&2
+  exit 1
+fi
+echo "train.sh: data ready after $((SECONDS / 60)) min; training for $minutes min"
 "$trainer" --data "$AFFINITY_DATA" --out "$run" --preset "$preset" \
-  --steps "${STEPS:-100000}" --minutes "${MINUTES:-90}" --batch "${BATCH:-4}" --crop 64 --frames 6 \
+  --steps "${STEPS:-100000}" --minutes "$minutes" --batch "${BATCH:-4}" --crop 64 --frames 6 \
   --lr 1e-3 --lr-half-life "${LR_HALF_LIFE:-2000}" --val-every 200 --checkpoint-every 200 \
   --coarse-weight 1 --temporal-weight 0.5 --warped-temporal --absolute-temporal-weight 0.2 \
   --bounded-absolute-temporal \
