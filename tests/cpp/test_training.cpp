@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstdlib>
 #include <filesystem>
+#include <ostream>
 #include <random>
 #include <string>
 #include <vector>
@@ -180,6 +181,13 @@ TEST(TrainingLoss, WarpedTemporalTermsIgnoreMotionAndCountOnlyPixelsWithHistory)
     const train::LossTerms one = train::sequenceLoss({2 * r0, flickering}, references, {}, {0.25, 1.0, true}, withInvalid);
     EXPECT_NEAR(one.temporal.item<double>(), 3 * (1.0 / 1.01) / (3 * 19.0), 1e-5);
 }
+
+// Names the parameter in test listings (gtest prints a struct's raw bytes otherwise).
+namespace affinity::train {
+void PrintTo(const LossWeights& weights, std::ostream* out) {
+    *out << (weights.boundedAbsoluteTemporal ? "bounded" : "plain") << " absolute temporal term";
+}
+}  // namespace affinity::train
 
 class TrainingLossGradient : public testing::TestWithParam<train::LossWeights> {};
 
