@@ -38,6 +38,22 @@ double lossValue(const std::vector<torch::Tensor>& outputs, const std::vector<to
     return train::sequenceLoss(outputs, references, bandwidths, weights, motions).total.item<double>();
 }
 
+// Two frames of a batch of two 2 x 2 crops for the absolute temporal tests. Crop 0: the output
+// steps by 1 where the reference steps by 0.5, on a reference of mean 1.5. Crop 1: a lamp of 100
+// flickers by 20 in one of four pixels (all channels); elsewhere 0, everything still.
+struct FlickerCrops {
+    torch::Tensor o0 = torch::zeros({2, 3, 2, 2}), o1 = torch::zeros({2, 3, 2, 2});
+    torch::Tensor r0 = torch::zeros({2, 3, 2, 2}), r1 = torch::zeros({2, 3, 2, 2});
+    FlickerCrops() {
+        o0[0].fill_(1.0), o1[0].fill_(2.0), r0[0].fill_(1.0), r1[0].fill_(1.5);
+        o0[1].select(1, 0).select(1, 0).fill_(100.0), o1[1].select(1, 0).select(1, 0).fill_(120.0);
+        r0[1].select(1, 0).select(1, 0).fill_(100.0), r1[1].select(1, 0).select(1, 0).fill_(100.0);
+    }
+    train::LossTerms loss(const train::LossWeights& weights) const {
+        return train::sequenceLoss({o0, o1}, {r0, r1}, {}, weights);
+    }
+};
+
 }  // namespace
 
 TEST(TrainingLoss, SmapeMatchesTheCoreMetric) {
@@ -92,14 +108,7 @@ TEST(TrainingLoss, CoarseTermSeesLostEnergyButNotEnergyMovedWithinACell) {
 }
 
 TEST(TrainingLoss, AbsoluteTemporalTermWeighsFlickerBySizePerCropBrightness) {
-    // Crop 0: the output steps by 1 where the reference steps by 0.5, on a reference of mean 1.5.
-    // Crop 1: a lamp of 100 flickers by 20 in one of four pixels; elsewhere 0, everything still.
-    torch::Tensor o0 = torch::zeros({2, 3, 2, 2}), o1 = torch::zeros({2, 3, 2, 2});
-    torch::Tensor r0 = torch::zeros({2, 3, 2, 2}), r1 = torch::zeros({2, 3, 2, 2});
-    o0[0].fill_(1.0), o1[0].fill_(2.0), r0[0].fill_(1.0), r1[0].fill_(1.5);
-    o0[1].select(1, 0).select(1, 0).fill_(100.0), o1[1].select(1, 0).select(1, 0).fill_(120.0);
-    r0[1].select(1, 0).select(1, 0).fill_(100.0), r1[1].select(1, 0).select(1, 0).fill_(100.0);
-    const train::LossTerms terms = train::sequenceLoss({o0, o1}, {r0, r1}, {}, {0.25, 2.0});
+    const train::LossTerms terms = FlickerCrops().loss({0.25, 2.0});
     const double crop0 = 0.5 / (1.5 + 0.01), crop1 = (20.0 / 4) / (100.0 / 4 + 0.01);
     EXPECT_NEAR(terms.absoluteTemporal.item<double>(), (crop0 + crop1) / 2, 1e-6);
     // The relative (SMAPE) term sees the lamp's flicker as no bigger than a shadow's.
@@ -112,17 +121,12 @@ TEST(TrainingLoss, AbsoluteTemporalTermWeighsFlickerBySizePerCropBrightness) {
 }
 
 TEST(TrainingLoss, BoundedAbsoluteTemporalTermCountsEachPixelAgainstItsOwnBrightness) {
-    // The crops of the test above. Crop 0 (uniform): every pixel's reference is the mean, so
+    // FlickerCrops. Crop 0 (uniform): every pixel's reference is the mean, so
     // each counts 0.5 / (1.5 + 1.5 + 0.01). Crop 1: the lamp's flicker of 20 counts against its
     // own 100 plus the crop's mean of 25, in one of 4 pixels (all 3 channels).
-    torch::Tensor o0 = torch::zeros({2, 3, 2, 2}), o1 = torch::zeros({2, 3, 2, 2});
-    torch::Tensor r0 = torch::zeros({2, 3, 2, 2}), r1 = torch::zeros({2, 3, 2, 2});
-    o0[0].fill_(1.0), o1[0].fill_(2.0), r0[0].fill_(1.0), r1[0].fill_(1.5);
-    o0[1].select(1, 0).select(1, 0).fill_(100.0), o1[1].select(1, 0).select(1, 0).fill_(120.0);
-    r0[1].select(1, 0).select(1, 0).fill_(100.0), r1[1].select(1, 0).select(1, 0).fill_(100.0);
     train::LossWeights bounded{0.25, 2.0};
     bounded.boundedAbsoluteTemporal = true;
-    const train::LossTerms terms = train::sequenceLoss({o0, o1}, {r0, r1}, {}, bounded);
+    const train::LossTerms terms = FlickerCrops().loss(bounded);
     const double crop0 = 0.5 / (1.5 + 1.5 + 0.01);
     const double crop1 = (20.0 / (100.0 + 25.0 + 0.01)) / 4;  // 0.04; the plain form's 0.2
     EXPECT_NEAR(terms.absoluteTemporal.item<double>(), (crop0 + crop1) / 2, 1e-6);
