@@ -26,6 +26,14 @@ inline constexpr double kTemporalWeight = 0.25;
 // training data"). Bounded, a pixel's share is at most its relative change, while flicker in
 // the crop's ordinary and dark pixels still counts by its size against the crop's brightness.
 //
+// The absolute spatial term is the same measure of the image itself, per crop:
+//   mean |O - O*| / (mean |O*| + 0.01)
+// It balances the absolute temporal term. A spark's flicker can be lowered by averaging it over
+// time (what the term is for) or by smearing its light over its neighbours (a halo: docs/
+// TRAINING.md, "Sparks in the training data"). SMAPE barely sees the halo, since a pixel's SMAPE
+// is at most 1 however much light it wrongly holds; this term charges the moved light by its size,
+// on the same scale as the flicker it saves, so only the temporal route stays cheap.
+//
 // The coarse term is SMAPE(C O, C O*), C the mean over cells of coarseCell x coarseCell pixels
 // (partial cells at the crop's edge averaged over their pixels). Pixel SMAPE is minimised by the
 // median of what the input allows, and against a noisy (Noise2Noise) target by the median of
@@ -40,6 +48,7 @@ struct LossWeights {
     double coarse = 0;
     int coarseCell = 8;
     bool boundedAbsoluteTemporal = false;
+    double absoluteSpatial = 0;
 };
 
 }  // namespace affinity::train

@@ -37,6 +37,7 @@ constexpr const char* kUsage =
     "  --warped-temporal   dt O = O_t - O_{t-1} warped by the motion, valid pixels only (train_loss.h)\n"
     "  --bounded-absolute-temporal  divide each pixel's absolute temporal error by its own reference\n"
     "                      brightness plus the crop's mean, so no spark owns the term (loss_weights.h)\n"
+    "  --absolute-spatial-weight W  weight of mean |O - O*| / mean |O*|, against halos (0; loss_weights.h)\n"
     "  --coarse-weight W   weight of SMAPE of cell means, against dark bias (0; train_loss.h)\n"
     "  --coarse-cell N     cell side of that term, pixels (8)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
@@ -125,6 +126,7 @@ int main(int argc, char** argv) {
             else if (flag == "--clip") options.clipNorm = real();
             else if (flag == "--temporal-weight") options.loss.temporal = real();
             else if (flag == "--absolute-temporal-weight") options.loss.absoluteTemporal = real();
+            else if (flag == "--absolute-spatial-weight") options.loss.absoluteSpatial = real();
             else if (flag == "--coarse-weight") options.loss.coarse = real();
             else if (flag == "--coarse-cell") options.loss.coarseCell = integer();
             else if (flag == "--val-every") options.valEvery = integer();

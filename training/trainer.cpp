@@ -243,7 +243,7 @@ ForwardResult forwardBatch(AffinityModel& model, const Batch& batch, const LossW
 }
 
 struct Validation {
-    double loss = 0, smape = 0, temporal = 0, absoluteTemporal = 0, noisySmape = 0, coarse = 0;
+    double loss = 0, smape = 0, temporal = 0, absoluteTemporal = 0, noisySmape = 0, coarse = 0, absoluteSpatial = 0;
 };
 
 // loss is the training loss without the regulariser.
@@ -260,18 +260,20 @@ Validation validate(AffinityModel& model, const std::vector<Batch>& batches, con
         result.absoluteTemporal += forward.loss.absoluteTemporal.item<double>();
         result.noisySmape += forward.noisySmape.item<double>();
         result.coarse += forward.loss.coarse.item<double>();
+        result.absoluteSpatial += forward.loss.absoluteSpatial.item<double>();
     }
     model->train();
     const double n = double(batches.size());
     return {result.loss / n, result.smape / n, result.temporal / n, result.absoluteTemporal / n,
-            result.noisySmape / n, result.coarse / n};
+            result.noisySmape / n, result.coarse / n, result.absoluteSpatial / n};
 }
 
 void checkOptions(const TrainOptions& o) {
     if (o.trainDir.empty() || o.outDir.empty()) throw Error("training needs a data folder and an output folder");
     if (o.steps < 1 || o.batch < 1 || o.crop < 8 || o.frames < 1 || o.minSpp < 1 || o.maxSpp < o.minSpp ||
         o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1 ||
-        !(o.loss.temporal >= 0) || !(o.loss.absoluteTemporal >= 0) || !(o.loss.coarse >= 0) || o.loss.coarseCell < 1) {
+        !(o.loss.temporal >= 0) || !(o.loss.absoluteTemporal >= 0) || !(o.loss.absoluteSpatial >= 0) ||
+        !(o.loss.coarse >= 0) || o.loss.coarseCell < 1) {
         throw Error("training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
                     "loss weights >= 0, coarse cell >= 1)");
     }
@@ -347,7 +349,7 @@ TrainSummary runTraining(const TrainOptions& options) {
     std::ofstream csv(csvFile, newCsv ? std::ios::trunc : std::ios::app);
     if (newCsv) {
         csv << "step,elapsed_s,lr,train_loss,train_smape,train_temporal,train_regulariser,train_noisy_smape,"
-               "val_loss,val_smape,val_temporal,val_noisy_smape,val_absolute_temporal,val_coarse\n";
+               "val_loss,val_smape,val_temporal,val_noisy_smape,val_absolute_temporal,val_coarse,val_absolute_spatial\n";
     }
 
     TrainSummary summary;
@@ -379,10 +381,10 @@ TrainSummary runTraining(const TrainOptions& options) {
                         double trainNoisy) {
         const Validation v = validate(model, val, lossWeights);
         char line[512];
-        std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
+        std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
                       elapsedBefore + elapsed(), learningRateAt(options, step), trainLoss, trainSmape,
                       trainTemporal, trainReg, trainNoisy, v.loss, v.smape, v.temporal, v.noisySmape,
-                      v.absoluteTemporal, v.coarse);
+                      v.absoluteTemporal, v.coarse, v.absoluteSpatial);
         csv << line;
         csv.flush();
         if (!val.empty()) {

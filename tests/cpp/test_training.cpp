@@ -29,8 +29,8 @@ namespace {
 
 // Every term switched on, with weights unlike the defaults, so the gradient check covers them all.
 // Coarse cells of 2 pixels on 4 x 3 images: the right column is a partial cell.
-const train::LossWeights kAllTerms{0.5, 0.3, true, 0.7, 2};
-const train::LossWeights kAllTermsBounded{0.5, 0.3, true, 0.7, 2, true};
+const train::LossWeights kAllTerms{0.5, 0.3, true, 0.7, 2, false, 0.4};
+const train::LossWeights kAllTermsBounded{0.5, 0.3, true, 0.7, 2, true, 0.4};
 
 double lossValue(const std::vector<torch::Tensor>& outputs, const std::vector<torch::Tensor>& references,
                  const std::vector<std::vector<torch::Tensor>>& bandwidths,
@@ -134,6 +134,26 @@ TEST(TrainingLoss, BoundedAbsoluteTemporalTermCountsEachPixelAgainstItsOwnBright
                 terms.spatial.item<double>() + 0.25 * terms.temporal.item<double>() +
                     2.0 * terms.absoluteTemporal.item<double>(),
                 1e-6);
+}
+
+TEST(TrainingLoss, AbsoluteSpatialTermChargesAHaloByTheLightItMoves) {
+    // A 2 x 2 crop whose reference is a lamp of 100 in one pixel and 0 elsewhere. The output
+    // keeps 64 in the lamp's pixel and spreads 12 onto each neighbour (a halo): per channel
+    // |O - O*| sums to 36 + 3 x 12 = 72 over 4 pixels, against a mean reference of 25.
+    torch::Tensor reference = torch::zeros({1, 3, 2, 2}), halo = torch::full({1, 3, 2, 2}, 12.0);
+    reference.select(2, 0).select(2, 0).fill_(100.0);
+    halo.select(2, 0).select(2, 0).fill_(64.0);
+    train::LossWeights weights{0.25, 0.0};
+    weights.absoluteSpatial = 0.5;
+    const train::LossTerms terms = train::sequenceLoss({halo}, {reference}, {}, weights);
+    EXPECT_NEAR(terms.absoluteSpatial.item<double>(), (72.0 / 4) / (25.0 + 0.01), 1e-6);
+    // SMAPE counts each halo pixel at most once, whatever light it holds.
+    const double smape = (36.0 / 164.01 + 3 * 12.0 / 12.01) / 4;
+    EXPECT_NEAR(terms.spatial.item<double>(), smape, 1e-6);
+    EXPECT_NEAR(terms.total.item<double>(), smape + 0.5 * terms.absoluteSpatial.item<double>(), 1e-6);
+    // Off by default, and zero for a perfect output.
+    EXPECT_EQ(train::sequenceLoss({halo}, {reference}, {}).absoluteSpatial.item<double>(), 0.0);
+    EXPECT_NEAR(train::sequenceLoss({reference}, {reference}, {}, weights).absoluteSpatial.item<double>(), 0.0, 1e-12);
 }
 
 TEST(TrainingLoss, WarpedTemporalTermsWithoutMotionEqualThePlainOnes) {
@@ -315,6 +335,9 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
         options.loss.absoluteTemporal = bad;
         EXPECT_THROW(train::runTraining(options), Error);
         options.loss.absoluteTemporal = 0;
+        options.loss.absoluteSpatial = bad;
+        EXPECT_THROW(train::runTraining(options), Error);
+        options.loss.absoluteSpatial = 0;
         options.loss.coarse = bad;
         EXPECT_THROW(train::runTraining(options), Error);
         options.loss.coarse = 0;
