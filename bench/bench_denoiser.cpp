@@ -5,12 +5,15 @@
 // process, so that peak memory is that model's.
 //
 //   bench_denoiser [--model FILE.affw] [--size 1920x1080] [--spp 4] [--frames 6] [--threads N]
-//                  [--stream 1 | --lend 1]
+//                  [--stream 1 | --lend 1] [--precision fp32|bf16]
 //
 // --stream 1 feeds each frame one sample at a time (Denoiser::addSamples, as the Blender
 // extension does), so only one sample's features are held: the input is then 1/spp the size.
 // --lend 1 makes each frame's samples in a buffer the denoiser lends (Denoiser::sampleBands, as
 // `affinity denoise` reads frame files), whose memory serves the later stages once embedded.
+//
+// --precision bf16 takes the Winograd convolutions' and the embedding's products in bfloat16
+// (affinity/precision.h; CPUs with AVX512-BF16).
 //
 // Prints one JSON object. Content of the frame does not matter for speed: plausible random
 // features with a small motion everywhere.
@@ -37,6 +40,7 @@ struct Options {
     std::string model;  // empty: the built-in model
     int width = 1920, height = 1080, spp = 4, frames = 6, threads = 0;
     bool stream = false, lend = false;
+    Precision precision = Precision::Float32;
 };
 
 Options parse(int argc, char** argv) {
@@ -60,6 +64,8 @@ Options parse(int argc, char** argv) {
             options.stream = value == "1";
         else if (flag == "--lend")
             options.lend = value == "1";
+        else if (flag == "--precision")
+            options.precision = precisionFromName(value);
         else
             throw Error("bench_denoiser: unknown option " + flag);
     }
@@ -113,7 +119,8 @@ double median(std::vector<double> values) {
 
 int run(const Options& options) {
     if (options.threads > 0) omp_set_num_threads(options.threads);
-    Model model = options.model.empty() ? Model::builtIn() : Model::fromFile(options.model);
+    Model model = options.model.empty() ? Model::builtIn(options.precision)
+                                        : Model::fromFile(options.model, options.precision);
     // Streaming holds one sample and feeds it spp times (the values do not matter for speed); a
     // lent frame's samples are made in the denoiser's buffer before each frame, untimed.
     const SampleFrame frame =
@@ -159,12 +166,13 @@ int run(const Options& options) {
                 "\"spp\": %d, \"threads\": %d, \"timed_frames\": %zu, \"ms_per_frame\": %.1f, "
                 "\"ms_per_megapixel\": %.1f, \"cpu_seconds_per_frame\": %.3f, \"gflops_per_cpu_second\": %.1f, "
                 "\"peak_rss_mb\": %.0f, \"buffer_mb\": %.0f, \"input_frame_mb\": %.0f, \"streamed\": %s, \"lent\": %s, "
-                "\"stage_ms\": {",
+                "\"precision\": \"%s\", \"stage_ms\": {",
                 model.source().c_str(), static_cast<long long>(model.parameterCount()),
                 model.flopsPerPixel(options.spp) / 1000.0, options.width, options.height, options.spp,
                 omp_get_max_threads(), wall.size(), median(wall), median(wall) / (pixels / 1e6), median(cpu),
                 model.flopsPerPixel(options.spp) * pixels / median(cpu) / 1e9, double(usage.ru_maxrss) / 1024.0,
-                double(bufferBytes) / (1024.0 * 1024.0), inputBytes / (1024.0 * 1024.0), options.stream ? "true" : "false", options.lend ? "true" : "false");
+                double(bufferBytes) / (1024.0 * 1024.0), inputBytes / (1024.0 * 1024.0), options.stream ? "true" : "false", options.lend ? "true" : "false",
+                precisionName(model.precision()));
     for (std::size_t i = 0; i < stageOrder.size(); ++i)
         std::printf("%s\"%s\": %.1f", i ? ", " : "", stageOrder[i].c_str(), median(stages[stageOrder[i]]));
     std::printf("}}\n");

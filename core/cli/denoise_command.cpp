@@ -40,7 +40,8 @@ nlohmann::json errors(const std::vector<float>& image, const std::vector<float>&
 }  // namespace
 
 int denoiseCommand(const std::vector<std::string>& args) {
-    const Arguments a(args, {"--in", "--out", "--model"}, {"--force"});
+    const Arguments a(args, {"--in", "--out", "--model", "--precision"}, {"--force"});
+    const Precision precision = precisionFromName(a.has("--precision") ? a.text("--precision") : "fp32");
     const fs::path in = a.text("--in"), out = a.text("--out");
     const std::vector<std::string> frames = listFrameFiles(in.string());
     if (frames.empty()) throw Error("input folder " + in.string() + " holds no frame files (frame_NNNN.exr)");
@@ -54,7 +55,7 @@ int denoiseCommand(const std::vector<std::string>& args) {
                 throw Error("output folder " + out.string() + " already holds denoised frames; pass --force to overwrite them");
     fs::create_directories(out);
 
-    Denoiser denoiser(a.has("--model") ? Model::fromFile(a.text("--model")) : Model::builtIn());
+    Denoiser denoiser(a.has("--model") ? Model::fromFile(a.text("--model"), precision) : Model::builtIn(precision));
     nlohmann::json perFrame = nlohmann::json::array();
     ProgressBar bar("denoise");
     double totalSeconds = 0.0;
@@ -87,6 +88,7 @@ int denoiseCommand(const std::vector<std::string>& args) {
     }
     const nlohmann::json summary = {{"input", in.string()},
                                     {"model", denoiser.model().source()},
+                                    {"precision", precisionName(precision)},
                                     {"frames", frames.size()},
                                     {"milliseconds_per_frame", totalSeconds * 1e3 / double(frames.size())},
                                     {"per_frame", perFrame}};

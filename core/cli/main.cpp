@@ -17,7 +17,7 @@ void printUsage() {
                  "           --scene NAME_OR_FILE --frames N --spp S --size WxH --reference-spp R\n"
                  "           --seed K --out DIR [--first-frame F] [--compression none|zip|piz]\n"
                  "           [--feature-convention renderer|cycles] [--previews] [--force]\n"
-                 "  denoise  denoise a frame sequence: --in DIR --out DIR [--model FILE.affw] [--force]\n");
+                 "  denoise  denoise a frame sequence: --in DIR --out DIR [--model FILE.affw] [--precision fp32|bf16] [--force]\n");
 }
 
 }  // namespace

@@ -6,6 +6,7 @@
 #include "coarse_winograd_transforms.h"
 #include "simd8.h"
 #include "winograd_conv.h"
+#include "winograd_products.h"
 #include "winograd_tiles.h"
 
 namespace affinity {
@@ -19,7 +20,7 @@ constexpr int kTilesPerTask = 24;
 }  // namespace
 
 CoarseWinograd::CoarseWinograd(const std::vector<double> (&phaseWeights)[2][2], const float* bias, int outChannels,
-                               int coarseChannels, ConvIsa isa)
+                               int coarseChannels, ConvIsa isa, Precision precision)
     : out_(outChannels), in_(coarseChannels), bias_(std::size_t(outChannels), 0.0f) {
     if (bias) std::copy(bias, bias + outChannels, bias_.begin());
     // U = G g G^T, G = [1 0; 1 1; 0 1], in double and rounded once.
@@ -41,6 +42,7 @@ CoarseWinograd::CoarseWinograd(const std::vector<double> (&phaseWeights)[2][2], 
             for (int p = 0; p < 9; ++p)
                 positions_[py][px][std::size_t(p)] =
                     PackedConv(u[std::size_t(p)].data(), nullptr, outChannels, coarseChannels, 1, isa);
+            bf16Positions_[py][px] = bf16Positions(u, outChannels, coarseChannels, precision == Precision::BFloat16);
         }
     transforms_ = {coarse_lines::transformPatch<Float8>, coarse_lines::transformOutput<Float8>};
 #if AFFINITY_HAVE_AVX512_KERNEL
@@ -75,11 +77,8 @@ void CoarseWinograd::rows(const float* coarse, int height, int width, int y0, in
                         2 * (firstTile + t) + firstCoarseTap(px), patch.data(), patchRow);
                     transforms_.patch(patchRow, stride, in_, inPlane, v.data() + std::size_t(t) * in_);
                 }
-                for (int p = 0; p < 9; ++p) {
-                    const ConvSource position{v.data() + std::size_t(p) * inPlane, in_};
-                    convolveRow(positions_[py][px][std::size_t(p)], &position, 1, 1, tiles, 0, 0, tiles,
-                                Activation::None, m.data() + std::size_t(p) * outPlane);
-                }
+                winogradProducts(positions_[py][px].data(), bf16Positions_[py][px], 9, v.data(), inPlane, tiles,
+                                 m.data(), outPlane);
                 for (int t = 0; t < tiles; ++t) {
                     float* out[2][2];
                     for (int r = 0; r < 2; ++r)

@@ -8,6 +8,8 @@
 #include <array>
 #include <vector>
 
+#include "affinity/precision.h"
+#include "bf16_gemm.h"
 #include "coarse_winograd_transforms.h"
 #include "conv_kernel.h"
 
@@ -24,7 +26,7 @@ public:
     // phaseWeights[py][px]: the folded 2x2 weights of that row and column parity, torch layout
     // [outChannels][coarseChannels][2][2]; bias [outChannels] or null (zero).
     CoarseWinograd(const std::vector<double> (&phaseWeights)[2][2], const float* bias, int outChannels,
-                   int coarseChannels, ConvIsa isa);
+                   int coarseChannels, ConvIsa isa, Precision precision = Precision::Float32);
 
     // Full-resolution rows y0 + r, r < 4 (y0 a multiple of 4), columns [x0, x1), of a height x
     // width output: the coarse part with the bias and no activation, into rows[r] (column 0 of an
@@ -34,6 +36,7 @@ public:
 private:
     int out_ = 0, in_ = 0;
     std::array<PackedConv, 9> positions_[2][2];  // [py][px][position i * 3 + j]
+    std::vector<PackedGemmBf16> bf16Positions_[2][2];  // the same in bfloat16 (Precision::BFloat16)
     std::vector<float> bias_;
     CoarseWinogradTransforms transforms_{};  // of the instruction set's vector width
 };

@@ -139,7 +139,7 @@ void scaleValues(float* values, int count, float factor) {
 
 }  // namespace
 
-Embedding::Embedding(std::vector<DenseLayer> layers) {
+Embedding::Embedding(std::vector<DenseLayer> layers, Precision precision) {
     if (layers.empty()) throw Error("Embedding: no layers");
     int expected = kFeatureCount;
     for (std::size_t i = 0; i < layers.size(); ++i) {
@@ -158,6 +158,10 @@ Embedding::Embedding(std::vector<DenseLayer> layers) {
         widest_ = std::max(widest_, layer.out);
         expected = layer.out;
     }
+    const bool pairs = std::all_of(layers.begin(), layers.end() - 1, [](const DenseLayer& l) { return l.in % 2 == 0; });
+    if (precision == Precision::BFloat16 && pairs)
+        for (std::size_t i = 0; i + 1 < layers.size(); ++i)
+            bf16Hidden_.emplace_back(layers[i].weight.data(), layers[i].out, layers[i].in, layers[i].bias.data());
 }
 
 int Embedding::outChannels() const { return layers_.back().outChannels(); }
@@ -187,6 +191,8 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
         AlignedVector<float> scratch(std::size_t(chunkPixels) * std::max(hiddenChannels(), kFeatureCount));
         std::vector<float> gather(samples.bands.size() > 1 ? std::size_t(chunkSamples) * kFeatureCount : 0);
         std::vector<float> chunkSums(sink && !sampleSums ? std::size_t(chunkPixels) * kSampleSumChannels : 0);
+        AlignedVector<std::uint16_t> rounded(bf16Hidden_.empty() ? 0 : std::size_t(chunkSamples) *
+                                                                            std::max(widest_, kFeatureCount));
 
 #pragma omp for schedule(dynamic, 16)
         for (long long chunk = 0; chunk < chunks; ++chunk) {
@@ -207,7 +213,13 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
             ConvSource source{input.data(), kFeatureCount};
             float* next = ping.data();
             for (std::size_t l = 0; l + 1 < layerCount; ++l) {
-                convolveRow(layers_[l], &source, 1, 1, n, 0, 0, n, Activation::LeakyRelu, next);
+                if (bf16Hidden_.empty()) {
+                    convolveRow(layers_[l], &source, 1, 1, n, 0, 0, n, Activation::LeakyRelu, next);
+                } else {
+                    convertToBf16(source.data, std::size_t(n) * source.channels, rounded.data());
+                    gemmBf16(bf16Hidden_[l], rounded.data(), std::size_t(source.channels), n, next,
+                             std::size_t(layers_[l].outChannels()), true);
+                }
                 source = {next, layers_[l].outChannels()};
                 next = next == ping.data() ? pong.data() : ping.data();
             }

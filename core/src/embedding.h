@@ -5,6 +5,8 @@
 #include <vector>
 
 #include "affinity/features.h"
+#include "affinity/precision.h"
+#include "bf16_gemm.h"
 #include "conv_kernel.h"
 #include "feature_map.h"
 
@@ -47,7 +49,9 @@ class Embedding {
 public:
     // Validates the chain: at least one layer, the first takes kFeatureCount inputs, each
     // takes what the previous gives, weight and bias sizes match (throws affinity::Error).
-    explicit Embedding(std::vector<DenseLayer> layers);
+    // With Precision::BFloat16 the per-sample layers (all but the last) take their products in
+    // bfloat16 (bf16_gemm.h), unless one has an odd input count; the last, per pixel, stays FP32.
+    explicit Embedding(std::vector<DenseLayer> layers, Precision precision = Precision::Float32);
     int outChannels() const;
 
     // Per-pixel sums over the samples that apply() and accumulate() can write beside the
@@ -105,6 +109,7 @@ private:
                           FeatureMap* sampleSums, const SumsSink* sink) const;
 
     std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples
+    std::vector<PackedGemmBf16> bf16Hidden_;  // all but the last in bfloat16, or none (FP32)
     int widest_ = 0;                  // most outputs of any layer
 };
 

@@ -9,16 +9,25 @@ extern "C" const unsigned long affinity_default_model_size;
 
 namespace affinity {
 
-Model Model::builtIn() {
-    static const Model model = fromWeights(
-        Weights::fromMemory(affinity_default_model, affinity_default_model_size, "built-in default model"));
+Model Model::builtIn(Precision precision) {
+    auto load = [](Precision p) {
+        return fromWeights(
+            Weights::fromMemory(affinity_default_model, affinity_default_model_size, "built-in default model"), p);
+    };
+    if (precision == Precision::BFloat16) {
+        static const Model model = load(Precision::BFloat16);
+        return model;
+    }
+    static const Model model = load(Precision::Float32);
     return model;
 }
 
-Model Model::fromFile(const std::string& path) { return fromWeights(Weights::fromFile(path)); }
+Model Model::fromFile(const std::string& path, Precision precision) {
+    return fromWeights(Weights::fromFile(path), precision);
+}
 
-Model Model::fromWeights(const Weights& weights) {
-    return Model(std::make_shared<const Network>(buildNetwork(weights)));
+Model Model::fromWeights(const Weights& weights, Precision precision) {
+    return Model(std::make_shared<const Network>(buildNetwork(weights, precision)));
 }
 
 const std::string& Model::source() const { return network_->source; }
@@ -27,6 +36,7 @@ int Model::affinityFeatures() const { return network_->affinityFeatures; }
 int Model::tapSize() const { return network_->tapSize; }
 int Model::embeddingChannels() const { return network_->embedding->outChannels(); }
 std::int64_t Model::parameterCount() const { return network_->parameterCount; }
+Precision Model::precision() const { return network_->precision; }
 
 double Model::flopsPerPixel(int spp) const {
     const Network& n = *network_;

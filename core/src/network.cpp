@@ -18,7 +18,7 @@ ConvForm formFor(int size, int upsampled) {
 
 class Builder {
 public:
-    explicit Builder(const Weights& weights) : weights_(weights) {}
+    Builder(const Weights& weights, Precision precision) : weights_(weights), precision_(precision) {}
 
     [[noreturn]] void fail(const std::string& what) const {
         throw Error("model " + weights_.source() + ": " + what);
@@ -54,7 +54,7 @@ public:
         const float* bias = weights_.floats(prefix + ".bias", {out});
         parameters_ += std::int64_t(w.count) + out;
         return Conv2d(static_cast<const float*>(w.data), bias, out, int(w.shape[1]), size, defaultConvIsa(),
-                      upsampled, formFor(size, upsampled));
+                      upsampled, formFor(size, upsampled), precision_);
     }
 
     // Convolutions "<prefix>.conv0", "<prefix>.conv1", ... chained from `in` channels, of which
@@ -105,16 +105,21 @@ public:
 
 private:
     const Weights& weights_;
+    Precision precision_;
     std::int64_t parameters_ = 0;
     std::set<std::string> used_;
 };
 
 }  // namespace
 
-Network buildNetwork(const Weights& weights) {
-    Builder b(weights);
+Network buildNetwork(const Weights& weights, Precision precision) {
+    if (precision == Precision::BFloat16 && !bfloat16Supported())
+        throw Error("model " + weights.source() + ": bfloat16 precision needs a CPU with AVX512-BF16 (and an x86-64 "
+                    "build with AVX-512 kernels); this one has none: use FP32");
+    Builder b(weights, precision);
     Network n;
     n.source = weights.source();
+    n.precision = precision;
     const int version = b.config("config.version", 1, 1000);
     if (version != 1) b.fail("model version " + std::to_string(version) + " is not supported (expected 1)");
     n.kernels = b.config("config.kernels", 1, 8);
@@ -131,7 +136,7 @@ Network buildNetwork(const Weights& weights) {
     std::vector<DenseLayer> dense = b.embedding();
     n.embeddingWidths.push_back(dense.front().in);
     for (const DenseLayer& layer : dense) n.embeddingWidths.push_back(layer.out);
-    n.embedding.emplace(std::move(dense));
+    n.embedding.emplace(std::move(dense), precision);
     const int embeddingChannels = n.embedding->outChannels();
 
     int channels = 2 * embeddingChannels;  // concat(e_t, warped history)

@@ -5,6 +5,7 @@
 #include <string>
 #include <vector>
 
+#include "affinity/precision.h"
 #include "embedding.h"
 #include "filter_signal.h"
 #include "unet_layers.h"
@@ -27,6 +28,7 @@ struct Network {
     bool emissionBypass = false;      // emissive samples are accumulated but not filtered
     bool emissionLambda = false;      // bypassed emission accumulates with its own learned lambda
     std::int64_t parameterCount = 0;
+    Precision precision = Precision::Float32;  // of the convolutions' products (affinity/precision.h)
 
     // Head channels per kernel: features, bandwidth, centre weight (and source weight).
     int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
@@ -37,7 +39,8 @@ struct Network {
     SignalLayout signalLayout() const { return SignalLayout{albedoDemodulation, emissionBypass}; }
 };
 
-// Throws affinity::Error naming the source and the first inconsistency.
-Network buildNetwork(const Weights& weights);
+// Throws affinity::Error naming the source and the first inconsistency, or where
+// Precision::BFloat16 is asked for on a CPU without AVX512-BF16.
+Network buildNetwork(const Weights& weights, Precision precision = Precision::Float32);
 
 }  // namespace affinity

@@ -20,21 +20,22 @@ std::string shapeText(const FeatureMap& map) {
 }  // namespace
 
 Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
-               ConvIsa isa, int upsampledChannels, ConvForm form)
+               ConvIsa isa, int upsampledChannels, ConvForm form, Precision precision)
     : packed_(torchWeights, bias, outChannels, inChannels, size, isa) {
     if (size != 1 && size != 3)  // centred windows only (the kernel also packs 2x2)
         throw Error("Conv2d: unsupported size " + std::to_string(size) + "x" + std::to_string(size));
     if (form == ConvForm::Winograd) {
         if (size != 3 || upsampledChannels > 0)
             throw Error("Conv2d: the Winograd form needs a 3x3 layer without a folded upsampled input");
-        winograd_.emplace(torchWeights, bias, outChannels, inChannels, isa);
+        winograd_.emplace(torchWeights, bias, outChannels, inChannels, isa, precision);
     }
     if (upsampledChannels <= 0) return;
     if (size != 3 || upsampledChannels >= inChannels)
         throw Error("Conv2d: an upsampled input of " + std::to_string(upsampledChannels) + " channels needs a 3x3 "
                     "layer with more inputs than that, not " + std::to_string(size) + "x" + std::to_string(size) +
                     " over " + std::to_string(inChannels));
-    upsampled_.emplace(torchWeights, bias, outChannels, upsampledChannels, inChannels - upsampledChannels, isa);
+    upsampled_.emplace(torchWeights, bias, outChannels, upsampledChannels, inChannels - upsampledChannels, isa,
+                       precision);
 }
 
 bool Conv2d::folds(const ConvSource* sources, int sourceCount) const {

@@ -32,8 +32,10 @@ public:
     // (applyUpsampled, or applyRow with an upsampled first source of that many channels): those
     // run the folded form of upsampled_conv.h, equal up to float rounding, with 4 taps instead
     // of 9 over the coarse channels. `form` Winograd needs size 3 and no folded input.
+    // `precision` BFloat16 takes the Winograd forms' products in bfloat16 (winograd_products.h).
     Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
-           ConvIsa isa = defaultConvIsa(), int upsampledChannels = 0, ConvForm form = ConvForm::Direct);
+           ConvIsa isa = defaultConvIsa(), int upsampledChannels = 0, ConvForm form = ConvForm::Direct,
+           Precision precision = Precision::Float32);
 
     int inChannels() const { return packed_.inChannels(); }
     int outChannels() const { return packed_.outChannels(); }

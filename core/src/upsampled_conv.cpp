@@ -11,7 +11,7 @@ int foldedTap(int parity, int offset) { return (parity + offset + 2) / 2 - 1 - f
 }  // namespace
 
 UpsampledConv::UpsampledConv(const float* torchWeights, const float* bias, int outChannels, int coarseChannels,
-                             int skipChannels, ConvIsa isa) {
+                             int skipChannels, ConvIsa isa, Precision precision) {
     const int in = coarseChannels + skipChannels;
     auto weight = [&](int o, int c, int ky, int kx) {
         return torchWeights[((std::size_t(o) * in + c) * 3 + ky) * 3 + kx];
@@ -36,8 +36,8 @@ UpsampledConv::UpsampledConv(const float* torchWeights, const float* bias, int o
             for (int k = 0; k < 9; ++k)
                 skipWeights[(std::size_t(o) * skipChannels + c) * 9 + k] = weight(o, coarseChannels + c, k / 3, k % 3);
     skip_ = PackedConv(skipWeights.data(), nullptr, outChannels, skipChannels, 3, isa);
-    skipWinograd_ = WinogradConv(skipWeights.data(), nullptr, outChannels, skipChannels, isa);
-    coarseWinograd_ = CoarseWinograd(phaseWeights, bias, outChannels, coarseChannels, isa);
+    skipWinograd_ = WinogradConv(skipWeights.data(), nullptr, outChannels, skipChannels, isa, precision);
+    coarseWinograd_ = CoarseWinograd(phaseWeights, bias, outChannels, coarseChannels, isa, precision);
 }
 
 void UpsampledConv::coarseRow(const ConvSource& coarse, int height, int width, int y, int x0, int x1,

@@ -16,9 +16,9 @@ namespace affinity {
 class UpsampledConv {
 public:
     // torchWeights [outChannels][coarseChannels + skipChannels][3][3] (the coarse channels first),
-    // bias [outChannels].
+    // bias [outChannels]. `precision` applies to the Winograd forms of rowGroup.
     UpsampledConv(const float* torchWeights, const float* bias, int outChannels, int coarseChannels, int skipChannels,
-                  ConvIsa isa);
+                  ConvIsa isa, Precision precision = Precision::Float32);
 
     int coarseChannels() const { return phase_[0][0].inChannels(); }
 

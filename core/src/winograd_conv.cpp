@@ -7,6 +7,7 @@
 #include "aligned_allocator.h"
 #include "simd8.h"
 #include "winograd_tiles.h"
+#include "winograd_products.h"
 #include "winograd_transforms.h"
 
 namespace affinity {
@@ -33,7 +34,7 @@ constexpr double kG[kPatch][3] = {{1.0 / 4, 0, 0},
 }  // namespace
 
 WinogradConv::WinogradConv(const float* torchWeights, const float* bias, int outChannels, int inChannels,
-                           ConvIsa isa)
+                           ConvIsa isa, Precision precision)
     : out_(outChannels), in_(inChannels), bias_(std::size_t(std::max(outChannels, 0)), 0.0f) {
     if (outChannels <= 0 || inChannels <= 0)
         throw Error("Winograd convolution: unsupported shape [" + std::to_string(outChannels) + ", " +
@@ -55,6 +56,7 @@ WinogradConv::WinogradConv(const float* torchWeights, const float* bias, int out
         }
     for (int p = 0; p < kPositions; ++p)
         positions_[std::size_t(p)] = PackedConv(u[std::size_t(p)].data(), nullptr, outChannels, inChannels, 1, isa);
+    bf16Positions_ = bf16Positions(u, outChannels, inChannels, precision == Precision::BFloat16);
     transforms_ = {winograd_lines::transformPatch<Float8>, winograd_lines::transformOutput<Float8>};
 #if AFFINITY_HAVE_AVX512_KERNEL
     if (isa == ConvIsa::Avx512) transforms_ = winogradTransformsAvx512();  // PackedConv checked the CPU
@@ -86,11 +88,7 @@ void WinogradConv::strip(const ConvSource* sources, int sourceCount, int height,
                 dst += sources[s].channels;
             }
         }
-        for (int p = 0; p < kPositions; ++p) {
-            const ConvSource position{v.data() + std::size_t(p) * inPlane, in_};
-            convolveRow(positions_[std::size_t(p)], &position, 1, 1, tiles, 0, 0, tiles, Activation::None,
-                        m.data() + std::size_t(p) * outPlane);
-        }
+        winogradProducts(positions_.data(), bf16Positions_, kPositions, v.data(), inPlane, tiles, m.data(), outPlane);
         for (int t = 0; t < tiles; ++t) {
             const int x = kRows * (firstTile + t);
             float* out[kRows][kRows];

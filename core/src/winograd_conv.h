@@ -12,6 +12,8 @@
 #include <array>
 #include <vector>
 
+#include "affinity/precision.h"
+#include "bf16_gemm.h"
 #include "conv_kernel.h"
 #include "feature_map.h"
 #include "winograd_transforms.h"  // kWinogradRows: output rows (and columns) of a tile
@@ -21,8 +23,10 @@ namespace affinity {
 class WinogradConv {
 public:
     WinogradConv() = default;
-    // torchWeights [outChannels][inChannels][3][3], bias [outChannels] or null (zero).
-    WinogradConv(const float* torchWeights, const float* bias, int outChannels, int inChannels, ConvIsa isa);
+    // torchWeights [outChannels][inChannels][3][3], bias [outChannels] or null (zero). With
+    // Precision::BFloat16 the per-position products are taken in bfloat16 (winograd_products.h).
+    WinogradConv(const float* torchWeights, const float* bias, int outChannels, int inChannels, ConvIsa isa,
+                 Precision precision = Precision::Float32);
 
     int outChannels() const { return out_; }
     int inChannels() const { return in_; }
@@ -44,6 +48,8 @@ private:
     int out_ = 0, in_ = 0;
     // 1x1 convolutions by U at V's position i * kWinogradPatch + j
     std::array<PackedConv, kWinogradPatch * kWinogradPatch> positions_;
+    // The same in bfloat16 (Precision::BFloat16; empty otherwise)
+    std::vector<PackedGemmBf16> bf16Positions_;
     std::vector<float> bias_;
     WinogradTransforms transforms_{};  // of the instruction set's vector width
 };

@@ -328,6 +328,8 @@ PYBIND11_MODULE(_core, m) {
         py::arg("path"), py::arg("frame"), py::arg("compression") = "piz",
         "Writes a frame dict atomically (see affinity.write_frame).");
 
+    m.def("bfloat16_supported", &bfloat16Supported,
+          "Whether this CPU can run models with precision='bf16' (AVX512-BF16).");
     m.def("frame_file_name", &frameFileName, py::arg("frame_index"),
           "'frame_0007.exr' for frame index 7.");
     m.def(
@@ -336,10 +338,17 @@ PYBIND11_MODULE(_core, m) {
         py::arg("directory"), "Frame files of a sequence folder, in frame order.");
 
     py::class_<Model>(m, "Model", "A denoising model (weights + structure), see docs/MODEL.md.")
-        .def_static("built_in", &Model::builtIn, "The default model compiled into the library.")
         .def_static(
-            "from_file", [](const std::filesystem::path& path) { return Model::fromFile(path.string()); },
-            py::arg("path"), "Loads a .affw weights file.")
+            "built_in", [](const std::string& precision) { return Model::builtIn(precisionFromName(precision)); },
+            py::arg("precision") = "fp32",
+            "The default model compiled into the library; precision 'fp32' or 'bf16' (affinity.bfloat16_supported()).")
+        .def_static(
+            "from_file",
+            [](const std::filesystem::path& path, const std::string& precision) {
+                return Model::fromFile(path.string(), precisionFromName(precision));
+            },
+            py::arg("path"), py::arg("precision") = "fp32", "Loads a .affw weights file.")
+        .def_property_readonly("precision", [](const Model& model) { return std::string(precisionName(model.precision())); })
         .def_property_readonly("source", &Model::source)
         .def_property_readonly("kernels", &Model::kernels)
         .def_property_readonly("affinity_features", &Model::affinityFeatures)

@@ -287,6 +287,41 @@ TEST(Denoiser, ResultsDoNotDependOnThreadCount) {
     }
 }
 
+TEST(DenoiserBFloat16, ResultsDoNotDependOnThreadCount) {
+    if (!bfloat16Supported()) GTEST_SKIP() << "no AVX512-BF16 on this CPU";
+    auto frames = test::randomSequence(2, 37, 21, 3, 9);
+    const Weights weights = test::randomWeights(test::ModelShape{}, 4);
+    const int threads = omp_get_max_threads();
+    omp_set_num_threads(1);
+    Denoiser one(Model::fromWeights(weights, Precision::BFloat16));
+    std::vector<float> a0 = one.denoise(frames[0]), a1 = one.denoise(frames[1]);
+    omp_set_num_threads(std::max(2, threads));
+    Denoiser many(Model::fromWeights(weights, Precision::BFloat16));
+    std::vector<float> b0 = many.denoise(frames[0]), b1 = many.denoise(frames[1]);
+    omp_set_num_threads(threads);
+    EXPECT_EQ(a0, b0);
+    EXPECT_EQ(a1, b1);
+    EXPECT_EQ(many.model().precision(), Precision::BFloat16);
+}
+
+TEST(DenoiserBFloat16, WithoutTheInstructionsItIsAnErrorThatSaysSo) {
+    const Weights weights = test::randomWeights(test::ModelShape{}, 4);
+    if (bfloat16Supported()) GTEST_SKIP() << "this CPU has AVX512-BF16";
+    try {
+        Model::fromWeights(weights, Precision::BFloat16);
+        FAIL() << "a bfloat16 model was built on a CPU without AVX512-BF16";
+    } catch (const Error& e) {
+        EXPECT_NE(std::string(e.what()).find("AVX512-BF16"), std::string::npos) << e.what();
+    }
+}
+
+TEST(DenoiserBFloat16, PrecisionNamesRoundTripAndOthersAreRejected) {
+    EXPECT_EQ(precisionFromName("fp32"), Precision::Float32);
+    EXPECT_EQ(precisionFromName("bf16"), Precision::BFloat16);
+    EXPECT_STREQ(precisionName(Precision::BFloat16), "bf16");
+    EXPECT_THROW(precisionFromName("fp16"), Error);
+}
+
 TEST(Denoiser, BadRadianceGivesFiniteOutputAndAWarningCount) {
     auto frames = test::randomSequence(2, 10, 8, 2, 3);
     frames[1].sample(2, 3, 0)[channel::kDiffuse] = std::nanf("");

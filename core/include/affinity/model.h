@@ -5,6 +5,8 @@
 #include <memory>
 #include <string>
 
+#include "affinity/precision.h"
+
 namespace affinity {
 
 class Weights;
@@ -12,11 +14,12 @@ struct Network;
 
 class Model {
 public:
-    // The default model compiled into the library.
-    static Model builtIn();
+    // The default model compiled into the library. `precision`: affinity/precision.h; BFloat16
+    // throws affinity::Error where !bfloat16Supported().
+    static Model builtIn(Precision precision = Precision::Float32);
     // Throws affinity::Error naming the file and what is wrong or inconsistent in it.
-    static Model fromFile(const std::string& path);
-    static Model fromWeights(const Weights& weights);
+    static Model fromFile(const std::string& path, Precision precision = Precision::Float32);
+    static Model fromWeights(const Weights& weights, Precision precision = Precision::Float32);
 
     const std::string& source() const;
     int kernels() const;           // K
@@ -24,6 +27,7 @@ public:
     int tapSize() const;           // T
     int embeddingChannels() const; // E
     std::int64_t parameterCount() const;
+    Precision precision() const;
     // Multiply-adds x 2 per pixel of the per-pixel network at `spp` samples per pixel.
     double flopsPerPixel(int spp) const;
 
