@@ -20,12 +20,13 @@ json_out=${BENCH_JSON:-}
 # Idle OpenMP workers sleep instead of spinning, so that back-to-back runs do not slow each other.
 export OMP_WAIT_POLICY=passive
 
-# "<label>=<model file>[=lend|stream|avx2]": lend makes each frame's samples in bands the
+# "<label>=<model file>[=lend|stream|avx2|bf16]": lend makes each frame's samples in bands the
 # denoiser lends (Denoiser::sampleBands, as `affinity denoise` reads frame files), whose memory
 # serves the later stages once embedded; stream feeds the frame one sample at a time
 # (Denoiser::addSamples, as the Blender extension does), so one sample's features are held;
 # avx2 runs the convolutions' AVX2 kernel where the CPU would pick AVX-512 (the same numbers
-# bit for bit: the rows show what the wider kernel buys on this machine, in the same run).
+# bit for bit: the rows show what the wider kernel buys on this machine, in the same run); bf16
+# takes the convolutions' products in bfloat16 (affinity/precision.h; CPUs with AVX512-BF16).
 models=("tiny=$root/core/models/tiny.affw" "small=")
 # The other trained rungs of the model ladder (docs/TRAINING.md), where they are in the checkout.
 for rung in small-e16 medium; do
@@ -35,6 +36,9 @@ models+=("tiny lent=$root/core/models/tiny.affw=lend" "small lent==lend")
 models+=("tiny streamed=$root/core/models/tiny.affw=stream" "small streamed==stream")
 if grep -q avx512f /proc/cpuinfo 2>/dev/null; then
   models+=("tiny, AVX2 kernel=$root/core/models/tiny.affw=avx2" "small, AVX2 kernel==avx2")
+fi
+if grep -q avx512_bf16 /proc/cpuinfo 2>/dev/null; then
+  models+=("tiny, bf16=$root/core/models/tiny.affw=bf16" "small, bf16==bf16")
 fi
 if [ -x "$build/training/affinity_model_tool" ]; then
   "$build/training/affinity_model_tool" init --preset paper --seed 1 --out "$work/paper.affw" >/dev/null
@@ -71,6 +75,7 @@ for entry in "${models[@]}"; do
   [ -n "$file" ] && args+=(--model "$file")
   [ "$mode" = stream ] && args+=(--stream 1)
   [ "$mode" = lend ] && args+=(--lend 1)
+  [ "$mode" = bf16 ] && args+=(--precision bf16)
   isa=${AFFINITY_CONV_ISA:-}
   [ "$mode" = avx2 ] && isa=avx2
   echo "{\"label\": \"$label\", \"result\": $(AFFINITY_CONV_ISA=$isa "$build/bench/bench_denoiser" "${args[@]}")}" >>"$work/results.jsonl"

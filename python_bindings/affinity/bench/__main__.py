@@ -64,7 +64,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                         help=f"render cache (default $AFFINITY_BENCH_DATA or {DEFAULT_DATA_DIR})")
     parser.add_argument("--affinity-bin", help="the affinity program (default $AFFINITY_BIN or <build>/core/affinity)")
     parser.add_argument("--model", type=parse_model, action="append", default=[], metavar="LABEL=PATH",
-                        help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model. The first "
+                        help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model, PATH:bf16 the "
+                             "model with bfloat16 products (CPUs with AVX512-BF16). The first "
                              "one's ablations run too. Default: small=builtin and the ladder's other models in "
                              "<source>/core/models (tiny, small-e16, medium)")
     parser.add_argument("--methods", help="comma-separated method labels to run (default: all)")

@@ -24,6 +24,7 @@ Runner = Callable[[dict[str, Any]], np.ndarray]
 ABLATIONS = affinity.Denoiser.ABLATIONS
 #: The built-in model, where a model path is expected.
 BUILT_IN = "builtin"
+BF16_SUFFIX = ":bf16"  # after a model's path: its bfloat16 form
 
 
 def _channels(group: str) -> slice:
@@ -79,7 +80,13 @@ def _ours(model: affinity.Model, ablation: str | None = None) -> Callable[[], Ru
 
 
 def load_model(path: str) -> affinity.Model:
-    return affinity.Model.built_in() if path == BUILT_IN else affinity.Model.from_file(os.fspath(path))
+    """PATH, or PATH:bf16 for the model with bfloat16 products (affinity/precision.h)."""
+    precision = "fp32"
+    if path.endswith(BF16_SUFFIX):
+        path, precision = path[: -len(BF16_SUFFIX)], "bf16"
+    if path == BUILT_IN:
+        return affinity.Model.built_in(precision)
+    return affinity.Model.from_file(os.fspath(path), precision)
 
 
 def make_methods(models: list[tuple[str, str]]) -> list[Method]:
