@@ -44,6 +44,7 @@ class Cancelled(RuntimeError):
 class Settings:
     samples_per_frame: int = 4
     model_path: str = ""
+    fast_arithmetic: bool = False
     temporal: bool = True
     output_folder: str = ""
     keep_sample_frames: bool = False
@@ -53,6 +54,7 @@ class Settings:
         return cls(
             samples_per_frame=props.samples_per_frame,
             model_path=props.model_path,
+            fast_arithmetic=props.fast_arithmetic,
             temporal=props.temporal,
             output_folder=props.output_folder,
             keep_sample_frames=props.keep_sample_frames,
@@ -138,7 +140,7 @@ class DenoiseRender:
         scene = self.scene
         if scene.render.engine != "CYCLES":
             raise RuntimeError("the Affinity Denoiser needs Cycles as the render engine")
-        denoiser = backend.create_denoiser(self.settings.model_path)
+        denoiser = backend.create_denoiser(self.settings.model_path, self.settings.fast_arithmetic)
         if self.settings.keep_sample_frames:
             backend.load_core(need_denoiser=False)  # the core writes frame files: fail early
         motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())  # fail early

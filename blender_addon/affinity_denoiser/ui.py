@@ -32,6 +32,7 @@ class AFFINITY_DENOISER_PT_render(bpy.types.Panel):
         column.active = settings.enabled
         column.prop(settings, "samples_per_frame")
         column.prop(settings, "model_path")
+        column.prop(settings, "fast_arithmetic")
         column.prop(settings, "temporal")
         column.prop(settings, "output_folder")
         column.prop(settings, "keep_sample_frames")

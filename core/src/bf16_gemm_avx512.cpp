@@ -1,13 +1,28 @@
 // The bfloat16 products of bf16_gemm.h: VDPBF16PS, register-blocked like conv_blocks.h (12 rows
 // x up to two 16-lane vectors of output channels; a last vector with at most 8 channels runs
 // on 256-bit registers, half the uops on cores that split 512-bit operations). Built with
-// -march=x86-64-v4 -mavx512bf16 and entered only after cpuHasAvx512Bf16().
+// -march=x86-64-v4 -mavx512bf16 and entered only after cpuHasAvx512Bf16(). The Winograd patch
+// transforms that store V in bfloat16 are instantiated here too, where the conversion compiles.
 #include <immintrin.h>
 
 #include "bf16_gemm.h"
+#include "coarse_winograd_transforms.h"
+#include "simd16.h"
+#include "winograd_transforms.h"
 
 namespace affinity {
 namespace {
+
+namespace winograd_lines {
+template <>
+void storeLanes<Float16>(Float16 v, std::uint16_t* p, int count) {
+    const __m256i rounded = (__m256i)_mm512_cvtneps_pbh(v.v);
+    if (count == Float16::kLanes)
+        _mm256_storeu_si256(reinterpret_cast<__m256i*>(p), rounded);
+    else
+        _mm256_mask_storeu_epi16(p, __mmask16((1u << count) - 1u), rounded);
+}
+}  // namespace winograd_lines
 
 constexpr int kLanes = 16;
 constexpr int kBlockRows = 12;
@@ -118,6 +133,12 @@ void gemmBf16Avx512(const PackedGemmBf16& w, const std::uint16_t* x, std::size_t
             a.tailLanes <= 8 ? gemmColumns<1, true>(a, words, rows, o) : gemmColumns<1, false>(a, words, rows, o);
     }
 }
+
+WinogradPatchTransformBf16 winogradPatchTransformBf16() {
+    return winograd_lines::transformPatch<Float16, std::uint16_t>;
+}
+
+CoarsePatchTransformBf16 coarsePatchTransformBf16() { return coarse_lines::transformPatch<Float16, std::uint16_t>; }
 
 void convertToBf16Avx512(const float* src, std::size_t count, std::uint16_t* dst) {
     std::size_t i = 0;

@@ -47,15 +47,19 @@ CoarseWinograd::CoarseWinograd(const std::vector<double> (&phaseWeights)[2][2], 
     transforms_ = {coarse_lines::transformPatch<Float8>, coarse_lines::transformOutput<Float8>};
 #if AFFINITY_HAVE_AVX512_KERNEL
     if (isa == ConvIsa::Avx512) transforms_ = coarseWinogradTransformsAvx512();  // PackedConv checked the CPU
+    if (!bf16Positions_[0][0].empty()) patchBf16_ = coarsePatchTransformBf16();  // bf16Positions checked the CPU
 #endif
 }
 
 void CoarseWinograd::rows(const float* coarse, int height, int width, int y0, int x0, int x1,
                           float* const* rows) const {
     thread_local AlignedVector<float> v, m;
+    thread_local AlignedVector<std::uint16_t> rounded;  // V in bfloat16, for bf16Positions_
     thread_local std::vector<float> patch, discard;
     const std::size_t inPlane = std::size_t(kTilesPerTask) * in_, outPlane = std::size_t(kTilesPerTask) * out_;
-    if (v.size() < 9 * inPlane) v.resize(9 * inPlane);
+    const bool bf16 = patchBf16_ != nullptr;
+    if (!bf16 && v.size() < 9 * inPlane) v.resize(9 * inPlane);
+    if (bf16 && rounded.size() < 9 * inPlane) rounded.resize(9 * inPlane);
     if (m.size() < 9 * outPlane) m.resize(9 * outPlane);
     if (patch.size() < 9 * std::size_t(in_)) patch.resize(9 * std::size_t(in_));
     if (discard.size() < std::size_t(out_)) discard.resize(std::size_t(out_), 0.0f);
@@ -75,10 +79,15 @@ void CoarseWinograd::rows(const float* coarse, int height, int width, int y0, in
                     const std::size_t stride = winograd::patchRows<3>(
                         source, coarseHeight, coarseWidth, coarseRow + firstCoarseTap(py),
                         2 * (firstTile + t) + firstCoarseTap(px), patch.data(), patchRow);
-                    transforms_.patch(patchRow, stride, in_, inPlane, v.data() + std::size_t(t) * in_);
+                    if (bf16)
+                        patchBf16_(patchRow, stride, in_, inPlane, rounded.data() + std::size_t(t) * in_);
+                    else
+                        transforms_.patch(patchRow, stride, in_, inPlane, v.data() + std::size_t(t) * in_);
                 }
-                winogradProducts(positions_[py][px].data(), bf16Positions_[py][px], 9, v.data(), inPlane, tiles,
-                                 m.data(), outPlane);
+                if (bf16)
+                    winogradProducts(bf16Positions_[py][px], rounded.data(), inPlane, tiles, m.data(), outPlane);
+                else
+                    winogradProducts(positions_[py][px].data(), 9, v.data(), inPlane, tiles, m.data(), outPlane);
                 for (int t = 0; t < tiles; ++t) {
                     float* out[2][2];
                     for (int r = 0; r < 2; ++r)

@@ -23,19 +23,25 @@ struct CoarseWinogradTransforms {
     CoarsePatchTransform patch;
     CoarseOutputTransform output;
 };
+// The patch transform with V rounded to bfloat16 as it is stored (Precision::BFloat16).
+using CoarsePatchTransformBf16 = void (*)(const float* const (&rows)[3], std::size_t pixelStride, int channels,
+                                          std::size_t plane, std::uint16_t* dst);
 
 #if AFFINITY_HAVE_AVX512_KERNEL
 // The 16-lane transforms (winograd_conv_avx512.cpp; call only where cpuHasAvx512()).
 CoarseWinogradTransforms coarseWinogradTransformsAvx512();
+// The 16-lane bfloat16 patch transform (bf16_gemm_avx512.cpp; call only where cpuHasAvx512Bf16()).
+CoarsePatchTransformBf16 coarsePatchTransformBf16();
 #endif
 
 // Internal linkage: each instruction set's translation unit keeps its own copies.
 namespace {
 namespace coarse_lines {
 
-template <class V>
+// T: float, or std::uint16_t for V stored as bfloat16.
+template <class V, class T = float>
 void transformPatch(const float* const (&rows)[3], std::size_t pixelStride, int channels, std::size_t plane,
-                    float* dst) {
+                    T* dst) {
     using winograd_lines::loadLanes, winograd_lines::storeLanes;
     for (int c = 0; c < channels; c += V::kLanes) {
         const int lanes = std::min(V::kLanes, channels - c);

@@ -60,6 +60,7 @@ WinogradConv::WinogradConv(const float* torchWeights, const float* bias, int out
     transforms_ = {winograd_lines::transformPatch<Float8>, winograd_lines::transformOutput<Float8>};
 #if AFFINITY_HAVE_AVX512_KERNEL
     if (isa == ConvIsa::Avx512) transforms_ = winogradTransformsAvx512();  // PackedConv checked the CPU
+    if (!bf16Positions_.empty()) patchBf16_ = winogradPatchTransformBf16();  // bf16Positions checked the CPU
 #endif
 }
 
@@ -68,9 +69,12 @@ void WinogradConv::strip(const ConvSource* sources, int sourceCount, int height,
     // Per thread, reused from call to call: the transformed input and products of kTilesPerTask
     // tiles, a border tile's patch, and where the outputs outside the rows and columns asked for go.
     thread_local AlignedVector<float> v, m;
+    thread_local AlignedVector<std::uint16_t> rounded;  // V in bfloat16, for bf16Positions_
     thread_local std::vector<float> patch, discard;
     const std::size_t inPlane = std::size_t(kTilesPerTask) * in_, outPlane = std::size_t(kTilesPerTask) * out_;
-    if (v.size() < kPositions * inPlane) v.resize(kPositions * inPlane);
+    const bool bf16 = patchBf16_ != nullptr;
+    if (!bf16 && v.size() < kPositions * inPlane) v.resize(kPositions * inPlane);
+    if (bf16 && rounded.size() < kPositions * inPlane) rounded.resize(kPositions * inPlane);
     if (m.size() < kPositions * outPlane) m.resize(kPositions * outPlane);
     if (patch.size() < kPositions * std::size_t(in_)) patch.resize(kPositions * std::size_t(in_));
     if (discard.size() < std::size_t(out_)) discard.resize(std::size_t(out_), 0.0f);
@@ -79,16 +83,22 @@ void WinogradConv::strip(const ConvSource* sources, int sourceCount, int height,
     for (int firstTile = x0 / kRows; firstTile < endTile; firstTile += kTilesPerTask) {
         const int tiles = std::min(kTilesPerTask, endTile - firstTile);
         for (int t = 0; t < tiles; ++t) {
-            float* dst = v.data() + std::size_t(t) * in_;
+            std::size_t offset = std::size_t(t) * in_;  // of this source's channels in the tile's V
             for (int s = 0; s < sourceCount; ++s) {
                 const float* patchRow[kPatch];
                 const std::size_t stride = winograd::patchRows<kPatch>(
                     sources[s], height, width, kRows * tileY - 1, kRows * (firstTile + t) - 1, patch.data(), patchRow);
-                transforms_.patch(patchRow, stride, sources[s].channels, inPlane, dst);
-                dst += sources[s].channels;
+                if (bf16)
+                    patchBf16_(patchRow, stride, sources[s].channels, inPlane, rounded.data() + offset);
+                else
+                    transforms_.patch(patchRow, stride, sources[s].channels, inPlane, v.data() + offset);
+                offset += std::size_t(sources[s].channels);
             }
         }
-        winogradProducts(positions_.data(), bf16Positions_, kPositions, v.data(), inPlane, tiles, m.data(), outPlane);
+        if (bf16)
+            winogradProducts(bf16Positions_, rounded.data(), inPlane, tiles, m.data(), outPlane);
+        else
+            winogradProducts(positions_.data(), kPositions, v.data(), inPlane, tiles, m.data(), outPlane);
         for (int t = 0; t < tiles; ++t) {
             const int x = kRows * (firstTile + t);
             float* out[kRows][kRows];

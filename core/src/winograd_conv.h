@@ -50,6 +50,7 @@ private:
     std::array<PackedConv, kWinogradPatch * kWinogradPatch> positions_;
     // The same in bfloat16 (Precision::BFloat16; empty otherwise)
     std::vector<PackedGemmBf16> bf16Positions_;
+    WinogradPatchTransformBf16 patchBf16_ = nullptr;  // set with bf16Positions_
     std::vector<float> bias_;
     WinogradTransforms transforms_{};  // of the instruction set's vector width
 };

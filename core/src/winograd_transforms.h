@@ -8,6 +8,7 @@
 // 64-channel input transform 1.4x faster).
 #include <algorithm>
 #include <cstddef>
+#include <cstdint>
 
 namespace affinity {
 
@@ -29,10 +30,15 @@ struct WinogradTransforms {
     WinogradPatchTransform patch;
     WinogradOutputTransform output;
 };
+// The patch transform with V rounded to bfloat16 as it is stored (Precision::BFloat16).
+using WinogradPatchTransformBf16 = void (*)(const float* const (&rows)[kWinogradPatch], std::size_t pixelStride,
+                                            int channels, std::size_t plane, std::uint16_t* dst);
 
 #if AFFINITY_HAVE_AVX512_KERNEL
 // The 16-lane transforms (winograd_conv_avx512.cpp; call only where cpuHasAvx512()).
 WinogradTransforms winogradTransformsAvx512();
+// The 16-lane bfloat16 patch transform (bf16_gemm_avx512.cpp; call only where cpuHasAvx512Bf16()).
+WinogradPatchTransformBf16 winogradPatchTransformBf16();
 #endif
 
 // Internal linkage: each instruction set's translation unit keeps its own copies.
@@ -50,6 +56,10 @@ void storeLanes(V v, float* p, int count) {
     else
         v.storePartial(p, count);
 }
+// Lanes [0, count) rounded to bfloat16: specialised for Float16 where AVX512-BF16 is compiled
+// (bf16_gemm_avx512.cpp); no other translation unit stores bfloat16.
+template <class V>
+void storeLanes(V v, std::uint16_t* p, int count);
 
 // t = B^T d for one line of six vectors (points 0, 1, -1, 2, -2, infinity; Lavin and Gray):
 //   B^T = [4  0 -5  0 1 0;  0 -4 -4  1 1 0;  0 4 -4 -1 1 0;
@@ -79,9 +89,10 @@ inline void outputLine(const V (&m)[kWinogradPatch], V (&y)[kWinogradRows]) {
     y[3] = fma(eight, diff34, diff12) + m[5];
 }
 
-template <class V>
+// T: float, or std::uint16_t for V stored as bfloat16.
+template <class V, class T = float>
 void transformPatch(const float* const (&rows)[kWinogradPatch], std::size_t pixelStride, int channels,
-                    std::size_t plane, float* dst) {
+                    std::size_t plane, T* dst) {
     constexpr int P = kWinogradPatch;
     for (int c = 0; c < channels; c += V::kLanes) {
         const int lanes = std::min(V::kLanes, channels - c);

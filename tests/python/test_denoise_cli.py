@@ -82,3 +82,21 @@ def test_the_cli_refuses_to_overwrite_and_names_the_problem(frames_dir: pathlib.
     bad = denoise("--in", str(frames_dir), "--out", str(tmp_path / "o3"), "--model", str(corrupt))
     assert bad.returncode != 0 and str(corrupt) in bad.stderr
     assert np.all([not (tmp_path / "o3" / f"denoised_{i:04d}.exr").exists() for i in range(3)])
+
+
+def test_the_cli_takes_a_precision_and_names_a_wrong_one(frames_dir: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    wrong = denoise("--in", str(frames_dir), "--out", str(tmp_path / "o1"), "--precision", "fp16")
+    assert wrong.returncode != 0 and "unknown precision 'fp16'" in wrong.stderr
+    assert not (tmp_path / "o1").exists()
+    done = denoise("--in", str(frames_dir), "--out", str(tmp_path / "bf16"), "--precision", "bf16")
+    if not affinity.bfloat16_supported():
+        assert done.returncode != 0 and "AVX512-BF16" in done.stderr
+        return
+    assert done.returncode == 0, done.stderr
+    summary = json.loads((tmp_path / "bf16" / "denoise_summary.json").read_text())
+    assert summary["precision"] == "bf16"
+    denoiser = affinity.Denoiser(precision="bf16")
+    for entry, path in zip(summary["per_frame"], affinity.list_frame_files(frames_dir)):
+        frame = affinity.read_frame(path)
+        output = denoiser.denoise(frame)
+        assert entry["denoised"]["smape"] == pytest.approx(metrics.smape(output, frame["reference"]), rel=1e-9)
