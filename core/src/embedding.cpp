@@ -158,10 +158,24 @@ Embedding::Embedding(std::vector<DenseLayer> layers, Precision precision) {
         widest_ = std::max(widest_, layer.out);
         expected = layer.out;
     }
-    const bool pairs = std::all_of(layers.begin(), layers.end() - 1, [](const DenseLayer& l) { return l.in % 2 == 0; });
+    const bool pairs = std::all_of(layers.begin(), layers.end(), [](const DenseLayer& l) { return l.in % 2 == 0; });
     if (precision == Precision::BFloat16 && pairs)
-        for (std::size_t i = 0; i + 1 < layers.size(); ++i)
-            bf16Hidden_.emplace_back(layers[i].weight.data(), layers[i].out, layers[i].in, layers[i].bias.data());
+        for (const DenseLayer& layer : layers)
+            bf16Layers_.emplace_back(layer.weight.data(), layer.out, layer.in, layer.bias.data());
+}
+
+void Embedding::lastLayer(const float* mean, int count, float* out) const {
+    const int channels = hiddenChannels();
+    if (bf16Layers_.empty()) {
+        const ConvSource meanSource{mean, channels};
+        convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count, Activation::None, out);
+        return;
+    }
+    thread_local AlignedVector<std::uint16_t> rounded;  // per thread, reused from call to call
+    const std::size_t values = std::size_t(count) * channels;
+    if (rounded.size() < values) rounded.resize(values);
+    convertToBf16(mean, values, rounded.data());
+    gemmBf16(bf16Layers_.back(), rounded.data(), std::size_t(channels), count, out, std::size_t(outChannels()));
 }
 
 int Embedding::outChannels() const { return layers_.back().outChannels(); }
@@ -191,7 +205,7 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
         AlignedVector<float> scratch(std::size_t(chunkPixels) * std::max(hiddenChannels(), kFeatureCount));
         std::vector<float> gather(samples.bands.size() > 1 ? std::size_t(chunkSamples) * kFeatureCount : 0);
         std::vector<float> chunkSums(sink && !sampleSums ? std::size_t(chunkPixels) * kSampleSumChannels : 0);
-        AlignedVector<std::uint16_t> rounded(bf16Hidden_.empty() ? 0 : std::size_t(chunkSamples) *
+        AlignedVector<std::uint16_t> rounded(bf16Layers_.empty() ? 0 : std::size_t(chunkSamples) *
                                                                             std::max(widest_, kFeatureCount));
 
 #pragma omp for schedule(dynamic, 16)
@@ -213,11 +227,11 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
             ConvSource source{input.data(), kFeatureCount};
             float* next = ping.data();
             for (std::size_t l = 0; l + 1 < layerCount; ++l) {
-                if (bf16Hidden_.empty()) {
+                if (bf16Layers_.empty()) {
                     convolveRow(layers_[l], &source, 1, 1, n, 0, 0, n, Activation::LeakyRelu, next);
                 } else {
                     convertToBf16(source.data, std::size_t(n) * source.channels, rounded.data());
-                    gemmBf16(bf16Hidden_[l], rounded.data(), std::size_t(source.channels), n, next,
+                    gemmBf16(bf16Layers_[l], rounded.data(), std::size_t(source.channels), n, next,
                              std::size_t(layers_[l].outChannels()), true);
                 }
                 source = {next, layers_[l].outChannels()};
@@ -275,9 +289,7 @@ long long Embedding::applyChunks(const SampleBands& samples, int height, InputSc
                                 addSamplesOfPixel(hidden + std::size_t(p) * spp * channels, spp, channels, true,
                                                   mean + std::size_t(p) * channels);
                             scaleValues(mean, count * channels, inverseSpp);
-                            const ConvSource meanSource{mean, channels};
-                            convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count,
-                                        Activation::None, output.data() + std::size_t(p0) * outChannels());
+                            lastLayer(mean, count, output.data() + std::size_t(p0) * outChannels());
                         });
 }
 
@@ -330,9 +342,7 @@ void Embedding::finish(const FeatureMap& hiddenSum, int spp, FeatureMap& output)
             const std::size_t values = std::size_t(count) * channels;
 #pragma omp simd
             for (std::size_t i = 0; i < values; ++i) mean[i] = sum[i] * inverseSpp;
-            const ConvSource meanSource{mean.data(), channels};
-            convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count, Activation::None,
-                        output.data() + std::size_t(p0) * outChannels());
+            lastLayer(mean.data(), count, output.data() + std::size_t(p0) * outChannels());
         }
     }
 }

@@ -49,8 +49,8 @@ class Embedding {
 public:
     // Validates the chain: at least one layer, the first takes kFeatureCount inputs, each
     // takes what the previous gives, weight and bias sizes match (throws affinity::Error).
-    // With Precision::BFloat16 the per-sample layers (all but the last) take their products in
-    // bfloat16 (bf16_gemm.h), unless one has an odd input count; the last, per pixel, stays FP32.
+    // With Precision::BFloat16 every layer takes its products in bfloat16 (bf16_gemm.h), unless
+    // one has an odd input count (then all stay FP32).
     explicit Embedding(std::vector<DenseLayer> layers, Precision precision = Precision::Float32);
     int outChannels() const;
 
@@ -109,7 +109,9 @@ private:
                           FeatureMap* sampleSums, const SumsSink* sink) const;
 
     std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples
-    std::vector<PackedGemmBf16> bf16Hidden_;  // all but the last in bfloat16, or none (FP32)
+    std::vector<PackedGemmBf16> bf16Layers_;  // every layer in bfloat16, or none (FP32)
+    // The last layer (no activation) on `count` pixels' mean hidden outputs.
+    void lastLayer(const float* mean, int count, float* out) const;
     int widest_ = 0;                  // most outputs of any layer
 };
 

@@ -5,6 +5,7 @@
 #include <string>
 
 #include "affinity/error.h"
+#include "aligned_allocator.h"
 
 namespace affinity {
 namespace {
@@ -29,6 +30,8 @@ Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, in
             throw Error("Conv2d: the Winograd form needs a 3x3 layer without a folded upsampled input");
         winograd_.emplace(torchWeights, bias, outChannels, inChannels, isa, precision);
     }
+    if (precision == Precision::BFloat16 && size == 1 && inChannels % 2 == 0)
+        bf16Pointwise_.emplace(torchWeights, outChannels, inChannels, bias);
     if (upsampledChannels <= 0) return;
     if (size != 3 || upsampledChannels >= inChannels)
         throw Error("Conv2d: an upsampled input of " + std::to_string(upsampledChannels) + " channels needs a 3x3 "
@@ -45,10 +48,19 @@ bool Conv2d::folds(const ConvSource* sources, int sourceCount) const {
 
 void Conv2d::row(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
                  Activation activation, float* outRow) const {
-    if (folds(sources, sourceCount))
+    if (folds(sources, sourceCount)) {
         upsampled_->row(packed_, sources[0], sources[1], height, width, y, x0, x1, activation, outRow);
-    else
+    } else if (bf16Pointwise_ && sourceCount == 1 && !sources[0].upsampled && x1 > x0) {
+        thread_local AlignedVector<std::uint16_t> rounded;  // the row's input in bfloat16
+        const int channels = sources[0].channels;
+        const std::size_t values = std::size_t(x1 - x0) * channels;
+        if (rounded.size() < values) rounded.resize(values);
+        convertToBf16(sources[0].data + (std::size_t(y) * width + x0) * channels, values, rounded.data());
+        gemmBf16(*bf16Pointwise_, rounded.data(), std::size_t(channels), x1 - x0, outRow + std::size_t(x0) * outChannels(),
+                 std::size_t(outChannels()), activation == Activation::LeakyRelu);
+    } else {
         convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, outRow);
+    }
 }
 
 void Conv2d::rowGroup(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,

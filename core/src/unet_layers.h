@@ -32,7 +32,8 @@ public:
     // (applyUpsampled, or applyRow with an upsampled first source of that many channels): those
     // run the folded form of upsampled_conv.h, equal up to float rounding, with 4 taps instead
     // of 9 over the coarse channels. `form` Winograd needs size 3 and no folded input.
-    // `precision` BFloat16 takes the Winograd forms' products in bfloat16 (winograd_products.h).
+    // `precision` BFloat16 takes the Winograd forms' products and a 1x1 layer's in bfloat16
+    // (winograd_products.h, bf16_gemm.h), where the input channel count is even.
     Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
            ConvIsa isa = defaultConvIsa(), int upsampledChannels = 0, ConvForm form = ConvForm::Direct,
            Precision precision = Precision::Float32);
@@ -85,6 +86,7 @@ private:
     PackedConv packed_;
     std::optional<UpsampledConv> upsampled_;
     std::optional<WinogradConv> winograd_;
+    std::optional<PackedGemmBf16> bf16Pointwise_;  // a 1x1 layer in bfloat16 (Precision::BFloat16)
 };
 
 // out(y, x) = max over in(2y..2y+1, 2x..2x+1) that exist; out is ceil(h/2) x ceil(w/2).

@@ -466,7 +466,8 @@ TEST(DenoiserExposure, BlackFramesLeaveItToTheFirstFrameWithLight) {
     EXPECT_NE(lit.exposure, 1.0f);
 }
 
-TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
+// With `precision`, both denoisers' models in it (bfloat16: the same bits too).
+void expectBatchesGiveTheWholeFrameResult(Precision precision) {
     auto frames = test::randomSequence(3, 17, 11, 4, 21);
     // The depth scale comes from the first batch of every frame, the exposure from the first
     // batch of the sequence: make those the whole frames' too.
@@ -482,7 +483,10 @@ TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
     }
     const std::vector<std::vector<int>> batchings = {{1, 1, 2}, {1, 1, 1, 1}, {4}};
     for (const bool demodulated : {false, true}) {
-        Denoiser whole(randomModel(3, demodulated)), stream(randomModel(3, demodulated));
+        test::ModelShape shape;
+        shape.albedoDemodulation = shape.emissionBypass = demodulated;
+        const Weights weights = test::randomWeights(shape, 3);
+        Denoiser whole(Model::fromWeights(weights, precision)), stream(Model::fromWeights(weights, precision));
         for (std::size_t t = 0; t < frames.size(); ++t) {
             DenoiseReport report;
             const std::vector<float> expected = whole.denoise(frames[t]);
@@ -493,6 +497,13 @@ TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
             EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
         }
     }
+}
+
+TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) { expectBatchesGiveTheWholeFrameResult(Precision::Float32); }
+
+TEST(DenoiserBFloat16, BatchesGiveTheWholeFrameResultBitForBit) {
+    if (!bfloat16Supported()) GTEST_SKIP() << "no AVX512-BF16 on this CPU";
+    expectBatchesGiveTheWholeFrameResult(Precision::BFloat16);
 }
 
 TEST(DenoiserStreaming, OnlyTheDepthNormalisationDiffersWhenDepthsVary) {
