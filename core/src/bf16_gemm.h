@@ -1,10 +1,11 @@
 #pragma once
 // Matrix products in bfloat16 with FP32 accumulation (AVX512-BF16: VDPBF16PS does two
 // multiply-adds per 32-bit lane, twice the FP32 FMA's rate on the same units). Used, where the
-// CPU has it and the model asks for it (Precision::BFloat16, affinity/precision.h), by the Winograd convolutions'
-// per-position products: inputs and weights keep 8 significant bits (a relative rounding of at
-// most 2^-8 each), products and sums stay FP32. Rows of the input are bfloat16 values in pairs
-// of consecutive channels, so a channel count must be even.
+// CPU has it and the model asks for it (Precision::BFloat16, affinity/precision.h), by the
+// Winograd convolutions' per-position products, the 1x1 layers and the embedding: inputs and
+// weights keep 8 significant bits (a relative rounding of at most 2^-8 each), products and sums
+// stay FP32. Rows of the input are bfloat16 values in pairs of consecutive channels, so a
+// channel count must be even.
 #include <cstddef>
 #include <cstdint>
 #include <vector>
