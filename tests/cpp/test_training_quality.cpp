@@ -7,6 +7,8 @@
 #include <iostream>
 #include <string>
 
+#include <unistd.h>
+
 #include <gtest/gtest.h>
 
 #include "affinity/denoiser.h"
@@ -25,8 +27,10 @@ constexpr double kRecordedRatio = 0.535;  // glossy, 64x48, 4 frames at 4 spp: 0
 constexpr double kTolerance = 0.05;
 
 // The quality test's sequence, rendered here: 64x48, 4 frames at 4 spp, 256-spp references.
+// Into a folder of this process's own: ctest runs each test of this file as a process of its
+// own, side by side.
 std::vector<SampleFrame> renderSequence(const std::string& scene) {
-    const fs::path out = fs::temp_directory_path() / ("affinity_quality_" + scene);
+    const fs::path out = fs::temp_directory_path() / ("affinity_quality_" + scene + "_" + std::to_string(getpid()));
     fs::remove_all(out);
     const std::string command = std::string(AFFINITY_BINARY_DIR) + "/core/affinity render --scene " +
                                 AFFINITY_SOURCE_DIR + "/samples/scenes/" + scene +
