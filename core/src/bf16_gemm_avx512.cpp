@@ -65,11 +65,16 @@ void gemmBlock(const BlockArgs& a, const std::uint32_t* x, float* out) {
         if constexpr (HalfTail) wt = _mm256_load_si256(reinterpret_cast<const __m256i*>(wk + Full * kLanes));
 #pragma GCC unroll 16
         for (int m = 0; m < M; ++m) {
+            // One pair of the row's bfloat16 inputs in every lane.
             const __m512i xb = _mm512_set1_epi32(int(x[std::size_t(m) * xStride + k]));
 #pragma GCC unroll 2
             for (int n = 0; n < Full; ++n) acc[m][n] = _mm512_dpbf16_ps(acc[m][n], (__m512bh)xb, (__m512bh)wv[n]);
-            if constexpr (HalfTail)
-                tail[m] = _mm256_dpbf16_ps(tail[m], (__m256bh)__builtin_shufflevector((__v16si)xb, (__v16si)xb, 0, 1, 2, 3, 4, 5, 6, 7), (__m256bh)wt);
+            if constexpr (HalfTail) {
+                // The low half as a 256-bit value (a shuffle: GCC 12's cast intrinsic trips
+                // -Wmaybe-uninitialized).
+                const __m256i low = (__m256i)__builtin_shufflevector((__v16si)xb, (__v16si)xb, 0, 1, 2, 3, 4, 5, 6, 7);
+                tail[m] = _mm256_dpbf16_ps(tail[m], (__m256bh)low, (__m256bh)wt);
+            }
         }
     }
     const __m512 slope = _mm512_set1_ps(0.01f);  // leaky ReLU
