@@ -139,7 +139,7 @@ def create_denoiser(model_path: str, fast_arithmetic: bool = False) -> SequenceD
     """A sequence denoiser for ``model_path`` ('' = the model built into the core).
 
     ``fast_arithmetic`` takes the network's products in bfloat16 where this CPU has AVX512-BF16
-    (about 0.85x the time; docs/BLENDER.md) and in FP32 elsewhere, so that a .blend file saved with
+    (0.76-0.78x the time measured on Zen 4; docs/MODEL.md section 10) and in FP32 elsewhere, so that a .blend file saved with
     it on still renders on any machine.
     """
     if _factory is not None:

@@ -29,7 +29,7 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
     fast_arithmetic: bpy.props.BoolProperty(
         name="Fast Arithmetic",
         description="Compute the network's products in bfloat16 on CPUs with AVX512-BF16 (Zen 4, "
-        "Sapphire Rapids and later): about 15 % faster, the same quality within 0.5 %; other CPUs "
+        "Sapphire Rapids and later): about a fifth faster, the same quality within 0.5 %; other CPUs "
         "compute in full precision",
         default=False,
     )

@@ -4,6 +4,8 @@
 #include <string>
 
 #include "affinity/error.h"
+#include "aligned_allocator.h"
+#include "conv_kernel.h"
 
 namespace affinity {
 
@@ -14,14 +16,9 @@ void convertToBf16Avx512(const float* src, std::size_t count, std::uint16_t* dst
 #endif
 
 bool cpuHasAvx512Bf16() {
-#if AFFINITY_HAVE_AVX512_KERNEL
-    static const bool has = __builtin_cpu_supports("avx512f") && __builtin_cpu_supports("avx512vl") &&
-                            __builtin_cpu_supports("avx512bw") && __builtin_cpu_supports("avx512dq") &&
-                            __builtin_cpu_supports("avx512bf16");
+    // The AVX-512 kernels' own check, plus the bfloat16 instructions.
+    static const bool has = cpuHasAvx512() && __builtin_cpu_supports("avx512bf16");
     return has;
-#else
-    return false;
-#endif
 }
 
 std::uint16_t toBFloat16(float x) {
@@ -72,6 +69,14 @@ void gemmBf16(const PackedGemmBf16& w, const std::uint16_t* x, std::size_t xStri
     (void)w, (void)x, (void)xStride, (void)rows, (void)out, (void)outStride, (void)leaky;
     throw Error("bfloat16 product: this build has no AVX-512 kernels");
 #endif
+}
+
+void gemmBf16(const PackedGemmBf16& w, const float* x, int rows, float* out, std::size_t outStride, bool leaky) {
+    thread_local AlignedVector<std::uint16_t> rounded;  // per thread, reused from call to call
+    const std::size_t values = std::size_t(rows) * w.inChannels();
+    if (rounded.size() < values) rounded.resize(values);
+    convertToBf16(x, values, rounded.data());
+    gemmBf16(w, rounded.data(), std::size_t(w.inChannels()), rows, out, outStride, leaky);
 }
 
 void convertToBf16(const float* src, std::size_t count, std::uint16_t* dst) {

@@ -56,6 +56,10 @@ private:
 void gemmBf16(const PackedGemmBf16& w, const std::uint16_t* x, std::size_t xStride, int rows, float* out,
               std::size_t outStride, bool leaky = false);
 
+// The same on FP32 rows (x: rows x inChannels floats, contiguous), rounded to bfloat16 first.
+void gemmBf16(const PackedGemmBf16& w, const float* x, int rows, float* out, std::size_t outStride,
+              bool leaky = false);
+
 // dst[i] = toBFloat16(src[i]) for i < count (vectorised where cpuHasAvx512Bf16()).
 void convertToBf16(const float* src, std::size_t count, std::uint16_t* dst);
 

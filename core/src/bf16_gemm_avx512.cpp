@@ -77,18 +77,18 @@ void gemmBlock(const BlockArgs& a, const std::uint32_t* x, float* out) {
             }
         }
     }
-    const __m512 slope = _mm512_set1_ps(0.01f);  // leaky ReLU
+    const Float16 slope = Float16::broadcast(0.01f);  // leaky ReLU
 #pragma GCC unroll 16
     for (int m = 0; m < M; ++m) {
         float* o = out + std::size_t(m) * a.outStride;
 #pragma GCC unroll 2
         for (int n = 0; n < Full; ++n) {
-            __m512 v = acc[m][n];
-            if (a.leaky) v = _mm512_maskz_max_ps(__mmask16(0xFFFF), v, _mm512_mul_ps(v, slope));
+            Float16 v{acc[m][n]};
+            if (a.leaky) v = max(v, v * slope);
             if (n == N - 1 && a.tailLanes < kLanes)
-                _mm512_mask_storeu_ps(o + n * kLanes, __mmask16((1u << a.tailLanes) - 1u), v);
+                v.storePartial(o + n * kLanes, a.tailLanes);
             else
-                _mm512_storeu_ps(o + n * kLanes, v);
+                v.storeu(o + n * kLanes);
         }
         if constexpr (HalfTail) {
             __m256 v = tail[m];

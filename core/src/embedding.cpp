@@ -171,11 +171,7 @@ void Embedding::lastLayer(const float* mean, int count, float* out) const {
         convolveRow(layers_.back(), &meanSource, 1, 1, count, 0, 0, count, Activation::None, out);
         return;
     }
-    thread_local AlignedVector<std::uint16_t> rounded;  // per thread, reused from call to call
-    const std::size_t values = std::size_t(count) * channels;
-    if (rounded.size() < values) rounded.resize(values);
-    convertToBf16(mean, values, rounded.data());
-    gemmBf16(bf16Layers_.back(), rounded.data(), std::size_t(channels), count, out, std::size_t(outChannels()));
+    gemmBf16(bf16Layers_.back(), mean, count, out, std::size_t(outChannels()));
 }
 
 int Embedding::outChannels() const { return layers_.back().outChannels(); }
@@ -205,8 +201,6 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
         AlignedVector<float> scratch(std::size_t(chunkPixels) * std::max(hiddenChannels(), kFeatureCount));
         std::vector<float> gather(samples.bands.size() > 1 ? std::size_t(chunkSamples) * kFeatureCount : 0);
         std::vector<float> chunkSums(sink && !sampleSums ? std::size_t(chunkPixels) * kSampleSumChannels : 0);
-        AlignedVector<std::uint16_t> rounded(bf16Layers_.empty() ? 0 : std::size_t(chunkSamples) *
-                                                                            std::max(widest_, kFeatureCount));
 
 #pragma omp for schedule(dynamic, 16)
         for (long long chunk = 0; chunk < chunks; ++chunk) {
@@ -230,9 +224,7 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
                 if (bf16Layers_.empty()) {
                     convolveRow(layers_[l], &source, 1, 1, n, 0, 0, n, Activation::LeakyRelu, next);
                 } else {
-                    convertToBf16(source.data, std::size_t(n) * source.channels, rounded.data());
-                    gemmBf16(bf16Layers_[l], rounded.data(), std::size_t(source.channels), n, next,
-                             std::size_t(layers_[l].outChannels()), true);
+                    gemmBf16(bf16Layers_[l], source.data, n, next, std::size_t(layers_[l].outChannels()), true);
                 }
                 source = {next, layers_[l].outChannels()};
                 next = next == ping.data() ? pong.data() : ping.data();

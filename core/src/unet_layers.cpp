@@ -5,7 +5,6 @@
 #include <string>
 
 #include "affinity/error.h"
-#include "aligned_allocator.h"
 
 namespace affinity {
 namespace {
@@ -51,13 +50,9 @@ void Conv2d::row(const ConvSource* sources, int sourceCount, int height, int wid
     if (folds(sources, sourceCount)) {
         upsampled_->row(packed_, sources[0], sources[1], height, width, y, x0, x1, activation, outRow);
     } else if (bf16Pointwise_ && sourceCount == 1 && !sources[0].upsampled && x1 > x0) {
-        thread_local AlignedVector<std::uint16_t> rounded;  // the row's input in bfloat16
-        const int channels = sources[0].channels;
-        const std::size_t values = std::size_t(x1 - x0) * channels;
-        if (rounded.size() < values) rounded.resize(values);
-        convertToBf16(sources[0].data + (std::size_t(y) * width + x0) * channels, values, rounded.data());
-        gemmBf16(*bf16Pointwise_, rounded.data(), std::size_t(channels), x1 - x0, outRow + std::size_t(x0) * outChannels(),
-                 std::size_t(outChannels()), activation == Activation::LeakyRelu);
+        const float* input = sources[0].data + (std::size_t(y) * width + x0) * sources[0].channels;
+        gemmBf16(*bf16Pointwise_, input, x1 - x0, outRow + std::size_t(x0) * outChannels(), std::size_t(outChannels()),
+                 activation == Activation::LeakyRelu);
     } else {
         convolveRow(packed_, sources, sourceCount, height, width, y, x0, x1, activation, outRow);
     }

@@ -115,7 +115,7 @@ class Denoiser:
     The GIL is released while denoising.
 
     ``precision`` "bf16" takes the convolutions' products in bfloat16 on CPUs that have
-    AVX512-BF16 (``affinity.bfloat16_supported()``): about 0.85x the time, SMAPE within 1 %
+    AVX512-BF16 (``affinity.bfloat16_supported()``): 0.76-0.78x the time on Zen 4, SMAPE within 0.1 %
     (docs/MODEL.md section 10); a model given as a ``Model`` keeps its own precision.
 
     ``ablation`` switches off one part of the trained pipeline, for measuring what it buys:
