@@ -1,21 +1,26 @@
 #!/usr/bin/env bash
 # One command for a full training (docs/TRAINING.md): renders the data cache if needed, trains,
 # plots the loss curves, exports the best weights and evaluates them against the noisy input.
-#   scripts/train.sh [extra affinity_train options, e.g. --albedo-demodulation]
+#   scripts/train.sh [extra affinity_train options for both stages, e.g. --albedo-demodulation]
 # The defaults are the shipped default model's recipe from scratch on the CPU (docs/TRAINING.md,
-# "One command from scratch"): preset small; 220 procedural and 40 "sparks" sequences rendered
-# at 16 spp with 256-spp targets and 8 validation sequences (about 18 minutes on 2 cores); crops
-# of 4 x 64x64 x 6 frames at 2-8 spp per step; the loss SMAPE + 0.5 temporal SMAPE + coarse
-# SMAPE + 0.1 warped absolute temporal error. The whole command keeps to BUDGET minutes
-# (170): the training gets what the data step left, less 10 minutes for the evaluation, so a
-# slow host (rendering the data took 18 minutes on the Intel host of 2026-12-04, 46 on the AMD
-# EPYC (Zen 1) host of the evening) trains for less rather than running past 3 hours. The
-# machine must do nothing else meanwhile: a build, a benchmark or a second trainer beside it
-# slows each step several times over, even at the lowest scheduling class (docs/TRAINING.md).
+# "One command in two stages"): preset small; 220 procedural and 40 "sparks" sequences rendered
+# at 16 spp with 256-spp targets and 8 validation sequences (18-22 minutes on 2 cores); crops
+# of 4 x 64x64 x 6 frames at 2-8 spp per step. Two stages, in the order of the shipped chain:
+#   1. from scratch, SMAPE + 0.5 warped temporal SMAPE + coarse SMAPE (lr 1e-3, half-life 3000);
+#   2. the last FINAL_MINUTES (20) from stage 1's best weights, adding the warped absolute
+#      temporal term at 0.1 (lr 1e-4, half-life 1200). With that term from the first step the
+#      model spreads the light of tiny bright lamps onto their neighbours (a halo); added last,
+#      it cuts flicker and leaves the lamps alone (docs/TRAINING.md).
+# The whole command keeps to BUDGET minutes (170): the training gets what the data step left,
+# less 10 minutes for the evaluation, so a slow host trains for less rather than running past
+# 3 hours (rendering the data took 18 minutes on the Intel host of 2026-12-04, 46 on an AMD EPYC
+# Zen 1 host). The machine must do nothing else meanwhile: a build, a benchmark or a second
+# trainer beside it slows each step several times over, even at the lowest scheduling class.
 # Environment: AFFINITY_DATA (data cache, default $HOME/.cache/affinity/data-v2), RUN (output
-# folder, default $AFFINITY_DATA/../runs/<preset>), PRESET (small), STEPS (100000: the time limit
-# ends the run), MINUTES (training minutes; default: what BUDGET leaves; 0: no limit), BATCH (4),
-# LR_HALF_LIFE (3000), THREADS (2), SEED (1),
+# folder, default $AFFINITY_DATA/../runs/<preset>; stages in RUN/stage1 and RUN/stage2; a stage
+# whose weights RUN/stageN.affw exist is not run again, an interrupted one resumes), PRESET
+# (small), MINUTES (training minutes of both stages; default: what BUDGET leaves; 0 is not
+# allowed), FINAL_MINUTES (20), BATCH (4), LR_HALF_LIFE (3000, stage 1), THREADS (2), SEED (1),
 # DEVICE (cpu; cuda with a CUDA build of libtorch), EXPORT (weights file to write, default
 # $RUN/exported.affw; core/models/default.affw replaces the built-in model at the next build).
 # OpenMP's default wait policy (workers spin briefly before sleeping): with OMP_WAIT_POLICY=passive a
@@ -40,13 +45,28 @@ if [ "$minutes" -lt 10 ] && [ -z "${MINUTES:-}" ]; then
   echo "train.sh: the data step used $((SECONDS / 60)) of the $budget minutes; $minutes left for training (set MINUTES or BUDGET)" >&2
   exit 1
 fi
-echo "train.sh: data ready after $((SECONDS / 60)) min; training for $minutes min"
-"$trainer" --data "$AFFINITY_DATA" --out "$run" --preset "$preset" \
-  --steps "${STEPS:-100000}" --minutes "$minutes" --batch "${BATCH:-4}" --crop 64 --frames 6 \
-  --lr 1e-3 --lr-half-life "${LR_HALF_LIFE:-3000}" --val-every 200 --checkpoint-every 200 \
-  --coarse-weight 1 --temporal-weight 0.5 --warped-temporal --absolute-temporal-weight 0.1 \
-  --threads "${THREADS:-2}" --device "${DEVICE:-cpu}" --seed "${SEED:-1}" --export "$export_path" "$@"
+final_minutes=${FINAL_MINUTES:-20}
+first_minutes=$(( minutes - final_minutes ))
+if [ "$first_minutes" -lt 10 ]; then
+  echo "train.sh: $minutes training minutes leave $first_minutes for stage 1 after FINAL_MINUTES=$final_minutes" >&2
+  exit 1
+fi
+echo "train.sh: data ready after $((SECONDS / 60)) min; training for $minutes min ($first_minutes + $final_minutes)"
+common=(--data "$AFFINITY_DATA" --preset "$preset" --steps 100000 --batch "${BATCH:-4}" --crop 64 --frames 6
+  --val-every 200 --checkpoint-every 200 --coarse-weight 1 --temporal-weight 0.5 --warped-temporal
+  --threads "${THREADS:-2}" --device "${DEVICE:-cpu}")
+if [ ! -f "$run/stage1.affw" ]; then
+  "$trainer" "${common[@]}" --out "$run/stage1" --minutes "$first_minutes" --lr 1e-3 \
+    --lr-half-life "${LR_HALF_LIFE:-3000}" --seed "${SEED:-1}" --export "$run/stage1.affw" "$@"
+fi
+if [ ! -f "$run/stage2.affw" ]; then
+  "$trainer" "${common[@]}" --out "$run/stage2" --minutes "$final_minutes" --init "$run/stage1.affw" \
+    --lr 1e-4 --lr-half-life 1200 --absolute-temporal-weight 0.1 --seed "$(( ${SEED:-1} + 1 ))" \
+    --export "$run/stage2.affw" "$@"
+fi
+cp "$run/stage2.affw" "$export_path.tmp" && mv "$export_path.tmp" "$export_path"
 python=$root/.venv/bin/python
 [ -x "$python" ] || python=python3
-"$python" "$root/training/plot_loss.py" "$run/loss.csv" --out "$run/loss.png" --title "affinity_train $preset"
+"$python" "$root/training/plot_loss.py" "$run/stage1/loss.csv" "$run/stage2/loss.csv" --out "$run/loss.png" \
+  --title "affinity_train $preset, two stages"
 "$root/scripts/train_evaluate.sh" "$export_path"
