@@ -8,9 +8,10 @@
 # of 4 x 64x64 x 6 frames at 2-8 spp per step. Two stages, in the order of the shipped chain:
 #   1. from scratch, SMAPE + 0.5 warped temporal SMAPE + coarse SMAPE (lr 1e-3, half-life 3000);
 #   2. the last FINAL_MINUTES (20) from stage 1's best weights, adding the warped absolute
-#      temporal term at 0.1 (lr 1e-4, half-life 1200). With that term from the first step the
-#      model spreads the light of tiny bright lamps onto their neighbours (a halo); added last,
-#      it cuts flicker and leaves the lamps alone (docs/TRAINING.md).
+#      temporal term at 0.1 (lr 1e-4, half-life 1200). That term cuts flicker but spreads the
+#      light of tiny bright lamps onto their neighbours (a halo); added last, the halo is about
+#      half as bright as with the term from the first step (docs/TRAINING.md, "One command in
+#      two stages").
 # The whole command keeps to BUDGET minutes (170): the training gets what the data step left,
 # less 10 minutes for the evaluation, so a slow host trains for less rather than running past
 # 3 hours (rendering the data took 18 minutes on the Intel host of 2026-12-04, 46 on an AMD EPYC
