@@ -30,4 +30,13 @@ std::vector<NamedTensor> widened(const Weights& trained, const Weights& fresh);
 // first convolution's cost. Throws affinity::Error unless 1 <= channels <= E.
 std::vector<NamedTensor> withNarrowerEmbedding(const Weights& trained, int channels);
 
+// The trained model with every convolution of U-Net level `level` (its encoder and decoder
+// stacks) cut to `channels` outputs: per convolution those with the largest product of the
+// incoming weights' and the reading layers' outgoing weights' L2 norms, in their original order;
+// the layers that read them lose the other inputs. Not the same function (unless the dropped
+// channels were never read), a start for fine-tuning a cheaper model: level 0 runs at full
+// resolution and carries most of the U-Net's FLOPs. Throws affinity::Error unless the level
+// exists and 1 <= channels <= each of its widths.
+std::vector<NamedTensor> withNarrowerLevel(const Weights& trained, int level, int channels);
+
 }  // namespace affinity::train

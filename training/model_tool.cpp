@@ -6,6 +6,7 @@
 //   affinity_model_tool add-emission-lambda IN.affw OUT.affw
 //   affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw
 //   affinity_model_tool narrow-embedding --channels N IN.affw OUT.affw
+//   affinity_model_tool narrow-level --level L --channels N IN.affw OUT.affw
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -29,7 +30,9 @@ constexpr const char* kUsage =
     "       affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw   (same function, the preset's wider\n"
     "           layers; the new channels' incoming weights initialised with seed N)\n"
     "       affinity_model_tool narrow-embedding --channels N IN.affw OUT.affw   (keeps the N embedding channels\n"
-    "           the U-Net weighs most: a start for fine-tuning, not the same function)\n";
+    "           the U-Net weighs most: a start for fine-tuning, not the same function)\n"
+    "       affinity_model_tool narrow-level --level L --channels N IN.affw OUT.affw   (U-Net level L's\n"
+    "           convolutions cut to their N most used outputs: a start for fine-tuning)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -167,6 +170,19 @@ int runNarrowEmbedding(const std::vector<std::string>& args) {
     return 0;
 }
 
+int runNarrowLevel(const std::vector<std::string>& args) {
+    if (args.size() != 6 || args[0] != "--level" || args[2] != "--channels")
+        throw Error("narrow-level: expected --level L --channels N IN.affw OUT.affw");
+    if (args[4] == args[5]) throw Error("narrow-level: the output must not overwrite the input");
+    const std::uint64_t level = nonNegativeInteger("narrow-level: --level", args[1]);
+    const std::uint64_t channels = nonNegativeInteger("narrow-level: --channels", args[3]);
+    if (level > 64 || channels > 4096) throw Error("narrow-level: --level or --channels is more than any model has");
+    writeWeightsFile(args[5], withNarrowerLevel(Weights::fromFile(args[4]), int(level), int(channels)));
+    std::cout << "wrote " << args[5] << ": " << args[4] << " with " << channels << " channels at U-Net level " << level
+              << "\n";
+    return 0;
+}
+
 }  // namespace
 }  // namespace affinity::train
 
@@ -183,6 +199,7 @@ int main(int argc, char** argv) {
         if (args[0] == "add-emission-lambda") return affinity::train::runAddEmissionLambda(rest);
         if (args[0] == "widen") return affinity::train::runWiden(rest);
         if (args[0] == "narrow-embedding") return affinity::train::runNarrowEmbedding(rest);
+        if (args[0] == "narrow-level") return affinity::train::runNarrowLevel(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

@@ -192,6 +192,57 @@ TEST(Parity, NarrowingTheEmbeddingKeepsTheChannelsTheUnetReads) {
     for (const std::string& path : {zeroed, narrow}) std::filesystem::remove(path);
 }
 
+// Dropping level-0 channels that no layer reads leaves the function as it was: the default model
+// with every third channel of its level-0 encoder and decoder outputs unread (their weights in
+// the next level, the skip input and the head zeroed), cut to the other channels, denoises like
+// the zeroed model.
+TEST(Parity, NarrowingAUnetLevelKeepsTheChannelsThatAreRead) {
+    const Weights trained = Weights::fromFile(std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw");
+    const train::ModelConfig config = train::configFromWeights(trained);
+    const int encoderWidth = config.encoder[0].outWidth(), decoderWidth = config.decoder[0].outWidth();
+    const int coarse = config.decoder[1].outWidth();
+    ASSERT_EQ(encoderWidth, decoderWidth);  // one --channels for both
+    std::vector<train::NamedTensor> tensors = train::withNarrowerLevel(trained, 0, encoderWidth);  // a copy
+    // Zeroes the weights on inputs offset + c, c = 0, 3, 6, ... of a [O, I, kh, kw] tensor.
+    auto unread = [&](const std::string& name, int offset, int width) {
+        for (train::NamedTensor& tensor : tensors) {
+            if (tensor.name != name) continue;
+            const std::int64_t inputs = tensor.shape[1], taps = tensor.shape[2] * tensor.shape[3];
+            for (std::int64_t o = 0; o < tensor.shape[0]; ++o)
+                for (int c = 0; c < width; c += 3)
+                    std::fill_n(tensor.floats.begin() + std::ptrdiff_t((o * inputs + offset + c) * taps), taps, 0.0f);
+            return;
+        }
+        FAIL() << "no tensor " << name;
+    };
+    unread("unet.enc1.conv0.weight", 0, encoderWidth);
+    unread("unet.dec0.conv0.weight", coarse, encoderWidth);
+    unread("unet.head.weight", 0, decoderWidth);
+    const int kept = encoderWidth - (encoderWidth + 2) / 3;
+    const std::string zeroed = temporaryPath("unread_level0.affw"), narrow = temporaryPath("narrow_level0.affw");
+    train::writeWeightsFile(zeroed, tensors);
+    train::writeWeightsFile(narrow, train::withNarrowerLevel(Weights::fromFile(zeroed), 0, kept));
+    const train::ModelConfig narrowed = train::configFromWeights(Weights::fromFile(narrow));
+    EXPECT_EQ(narrowed.encoder[0].outWidth(), kept);
+    EXPECT_EQ(narrowed.decoder[0].outWidth(), kept);
+    EXPECT_EQ(narrowed.encoder[1].outWidth(), config.encoder[1].outWidth());
+    const std::vector<SampleFrame> frames = test::randomSequence(3, 27, 19, 4, 9);
+    Denoiser before(Model::fromFile(zeroed)), after(Model::fromFile(narrow));
+    for (std::size_t t = 0; t < frames.size(); ++t)
+        EXPECT_LT(maxRelativeDifference(after.denoise(frames[t]), before.denoise(frames[t])), 1e-5) << "frame " << t;
+    expectParity(narrow, frames);
+    // The deepest level (read by the bottleneck) narrows too; levels and widths out of range do not.
+    const int deepest = int(config.encoder.size()) - 1;
+    const std::string deep = temporaryPath("narrow_deepest.affw");
+    train::writeWeightsFile(deep, train::withNarrowerLevel(trained, deepest, 8));
+    EXPECT_EQ(train::configFromWeights(Weights::fromFile(deep)).encoder[std::size_t(deepest)].outWidth(), 8);
+    expectParity(deep, test::randomSequence(2, 18, 17, 2, 10));
+    EXPECT_THROW(train::withNarrowerLevel(trained, deepest + 1, 8), Error);
+    EXPECT_THROW(train::withNarrowerLevel(trained, 0, 0), Error);
+    EXPECT_THROW(train::withNarrowerLevel(trained, 0, encoderWidth + 1), Error);
+    for (const std::string& path : {zeroed, narrow, deep}) std::filesystem::remove(path);
+}
+
 TEST(Parity, EveryPresetAtInitialisation) {
     for (const std::string& preset : train::presetNames()) {
         for (int variant = 0; variant < 4; ++variant) {

@@ -46,8 +46,8 @@ def parse_spp_list(text: str) -> tuple[int, ...]:
 
 def parse_model(text: str) -> tuple[str, str]:
     label, separator, path = text.partition("=")
-    if not separator or not label or not path or not label.replace("_", "").isalnum():
-        raise argparse.ArgumentTypeError(f"'{text}' is not LABEL=PATH (LABEL: letters, digits, _)")
+    if not separator or not label or not path or not label.replace("_", "").replace("-", "").isalnum():
+        raise argparse.ArgumentTypeError(f"'{text}' is not LABEL=PATH (LABEL: letters, digits, _ and -)")
     return label, path
 
 
