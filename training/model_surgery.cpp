@@ -73,6 +73,38 @@ void keepInputs(NamedTensor& tensor, int offset, int width, const std::vector<in
     tensor.shape[1] = std::int64_t(order.size());
 }
 
+// Sum of squares of a [O, I, kh, kw] tensor's weights on output `o` (all inputs) or on input `i`
+// (all outputs).
+double outputEnergy(const TensorView& weight, std::int64_t o) {
+    const std::int64_t perOutput = weight.shape[1] * weight.shape[2] * weight.shape[3];
+    const auto* w = static_cast<const float*>(weight.data) + o * perOutput;
+    double sum = 0.0;
+    for (std::int64_t k = 0; k < perOutput; ++k) sum += double(w[k]) * double(w[k]);
+    return sum;
+}
+double inputEnergy(const TensorView& weight, std::int64_t i) {
+    const std::int64_t inputs = weight.shape[1], taps = weight.shape[2] * weight.shape[3];
+    const auto* w = static_cast<const float*>(weight.data);
+    double sum = 0.0;
+    for (std::int64_t o = 0; o < weight.shape[0]; ++o)
+        for (std::int64_t t = 0; t < taps; ++t) {
+            const double v = w[(o * inputs + i) * taps + t];
+            sum += v * v;
+        }
+    return sum;
+}
+
+// The indices of the `count` largest scores, in increasing order (ties: the lower index first).
+std::vector<int> mostImportant(const std::vector<double>& scores, int count) {
+    std::vector<int> order(scores.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = int(i);
+    std::stable_sort(order.begin(), order.end(),
+                     [&](int a, int b) { return scores[std::size_t(a)] > scores[std::size_t(b)]; });
+    order.resize(std::size_t(count));
+    std::sort(order.begin(), order.end());
+    return order;
+}
+
 // Where a run of a trained layer's input channels sits in the wider layer's input.
 struct InputRun {
     int from = 0, count = 0, to = 0;
@@ -189,22 +221,9 @@ std::vector<NamedTensor> withNarrowerEmbedding(const Weights& trained, int chann
                     " (" + trained.source() + " has E = " + std::to_string(E) + ")");
     const std::string lastEmbed = "embed." + std::to_string(config.embedWidths.size() - 1);
     const TensorView& first = trained.tensor("unet.enc0.conv0.weight");  // [out, 2E, 3, 3]
-    const std::int64_t out = first.shape[0], taps = first.shape[2] * first.shape[3];
-    const auto* w = static_cast<const float*>(first.data);
-    std::vector<std::pair<double, int>> weight(std::size_t(E), {0.0, 0});
-    for (int c = 0; c < E; ++c) {
-        weight[std::size_t(c)].second = c;
-        for (std::int64_t o = 0; o < out; ++o)
-            for (int part : {c, E + c})
-                for (std::int64_t t = 0; t < taps; ++t) {
-                    const double v = w[(o * 2 * E + part) * taps + t];
-                    weight[std::size_t(c)].first += v * v;
-                }
-    }
-    std::stable_sort(weight.begin(), weight.end(), [](const auto& a, const auto& b) { return a.first > b.first; });
-    std::vector<int> kept;
-    for (int i = 0; i < channels; ++i) kept.push_back(weight[std::size_t(i)].second);
-    std::sort(kept.begin(), kept.end());
+    std::vector<double> weight;
+    for (int c = 0; c < E; ++c) weight.push_back(inputEnergy(first, c) + inputEnergy(first, E + c));
+    const std::vector<int> kept = mostImportant(weight, channels);
 
     std::vector<NamedTensor> tensors;
     for (const std::string& name : trained.names()) {
@@ -270,27 +289,6 @@ std::vector<NarrowedConv> levelConvs(const ModelConfig& config, int level) {
     return convs;
 }
 
-// Sum of squares of a [O, I, kh, kw] tensor's weights on output `o` (all inputs) or on input `i`
-// (all outputs).
-double outputEnergy(const TensorView& weight, std::int64_t o) {
-    const std::int64_t perOutput = weight.shape[1] * weight.shape[2] * weight.shape[3];
-    const auto* w = static_cast<const float*>(weight.data) + o * perOutput;
-    double sum = 0.0;
-    for (std::int64_t k = 0; k < perOutput; ++k) sum += double(w[k]) * double(w[k]);
-    return sum;
-}
-double inputEnergy(const TensorView& weight, std::int64_t i) {
-    const std::int64_t inputs = weight.shape[1], taps = weight.shape[2] * weight.shape[3];
-    const auto* w = static_cast<const float*>(weight.data);
-    double sum = 0.0;
-    for (std::int64_t o = 0; o < weight.shape[0]; ++o)
-        for (std::int64_t t = 0; t < taps; ++t) {
-            const double v = w[(o * inputs + i) * taps + t];
-            sum += v * v;
-        }
-    return sum;
-}
-
 }  // namespace
 
 std::vector<NamedTensor> withNarrowerLevel(const Weights& trained, int level, int channels) {
@@ -306,18 +304,15 @@ std::vector<NamedTensor> withNarrowerLevel(const Weights& trained, int level, in
                         std::to_string(conv.width) + " (" + conv.prefix + " of " + trained.source() + ")");
         const TensorView& weight = trained.tensor(conv.prefix + ".weight");
         const auto* bias = static_cast<const float*>(trained.tensor(conv.prefix + ".bias").data);
-        std::vector<std::pair<double, int>> importance;
+        std::vector<double> importance;
         for (int c = 0; c < conv.width; ++c) {
             double read = 0.0;
             for (const Reader& reader : conv.readers)
                 read += inputEnergy(trained.tensor(reader.prefix + ".weight"), reader.offset + c);
             const double made = outputEnergy(weight, c) + double(bias[c]) * double(bias[c]);
-            importance.push_back({std::sqrt(made * read), c});
+            importance.push_back(std::sqrt(made * read));
         }
-        std::stable_sort(importance.begin(), importance.end(),
-                         [](const auto& a, const auto& b) { return a.first > b.first; });
-        for (int i = 0; i < channels; ++i) conv.kept.push_back(importance[std::size_t(i)].second);
-        std::sort(conv.kept.begin(), conv.kept.end());
+        conv.kept = mostImportant(importance, channels);
     }
     std::vector<NamedTensor> tensors = copiesOf(trained);
     auto find = [&](const std::string& name) -> NamedTensor& {
