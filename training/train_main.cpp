@@ -43,6 +43,8 @@ constexpr const char* kUsage =
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
     "  --device NAME       cpu (default), or cuda with a CUDA build of libtorch\n"
     "  --max-sequences N   use the first N training sequences only\n"
+    "  --keep-spp N        hold only the first N samples per pixel of each training sequence in\n"
+    "                      memory (at least --max-spp): half the memory of 16-spp data at 8\n"
     "  --no-augment        no flips, rotations or colour permutations\n"
     "  --fresh             ignore an existing checkpoint in --out\n"
     "  --export FILE.affw  copy the best (lowest validation loss) weights here at the end\n";
@@ -135,6 +137,7 @@ int main(int argc, char** argv) {
             else if (flag == "--device") options.device = value;
             else if (flag == "--seed") options.seed = std::uint64_t(integer());
             else if (flag == "--max-sequences") options.maxSequences = integer();
+            else if (flag == "--keep-spp") options.keepSpp = integer();
             else if (flag == "--export") exportPath = value;
             else throw affinity::Error("unknown option " + flag);
         }

@@ -65,7 +65,8 @@ std::vector<std::string> sequenceFolders(const std::string& root) {
     return folders;
 }
 
-Sequence loadSequence(const std::string& folder) {
+// `keepSpp` > 0 keeps only the first keepSpp samples of every pixel.
+Sequence loadSequence(const std::string& folder, int keepSpp) {
     const std::vector<std::string> files = listFrameFiles(folder);
     if (files.empty()) throw Error(folder + ": no frame files");
     std::vector<torch::Tensor> samples, motion, valid, reference;
@@ -81,7 +82,9 @@ Sequence loadSequence(const std::string& folder) {
         auto view = [](const std::vector<float>& data, std::vector<std::int64_t> shape) {
             return torch::from_blob(const_cast<float*>(data.data()), shape, torch::kFloat);
         };
+        const std::int64_t kept = keepSpp > 0 ? std::min(keepSpp, spp) : spp;
         samples.push_back(view(frame.samples(), {height, width, spp, kFeatureCount})
+                              .narrow(2, 0, kept)
                               .permute({2, 3, 0, 1})
                               .clamp(-65000.0, 65000.0)  // half's range; larger values are rare fireflies
                               .to(torch::kHalf)
@@ -100,7 +103,7 @@ Sequence loadSequence(const std::string& folder) {
 }
 
 // Loads sequences on several threads (frame decoding dominates); the first error is rethrown.
-std::vector<Sequence> loadSequences(const std::vector<std::string>& folders) {
+std::vector<Sequence> loadSequences(const std::vector<std::string>& folders, int keepSpp = 0) {
     std::vector<Sequence> sequences(folders.size());
     std::vector<std::string> errors(folders.size());
     std::atomic<std::size_t> next{0};
@@ -110,7 +113,7 @@ std::vector<Sequence> loadSequences(const std::vector<std::string>& folders) {
         threads.emplace_back([&] {
             for (std::size_t i = next++; i < folders.size(); i = next++) {
                 try {
-                    sequences[i] = loadSequence(folders[i]);
+                    sequences[i] = loadSequence(folders[i], keepSpp);
                 } catch (const std::exception& error) {
                     errors[i] = error.what();
                 }
@@ -277,6 +280,8 @@ void checkOptions(const TrainOptions& o) {
         throw Error("training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
                     "loss weights >= 0, coarse cell >= 1)");
     }
+    if (o.keepSpp < 0 || (o.keepSpp > 0 && o.keepSpp < o.maxSpp))
+        throw Error("--keep-spp must be 0 (all samples) or at least --max-spp (" + std::to_string(o.maxSpp) + ")");
 }
 
 double learningRateAt(const TrainOptions& options, int step) {
@@ -310,7 +315,7 @@ TrainSummary runTraining(const TrainOptions& options) {
         trainFolders.resize(std::size_t(options.maxSequences));
     }
     if (trainFolders.empty()) throw Error("no training sequences in " + options.trainDir);
-    std::vector<Sequence> train = loadSequences(trainFolders);
+    std::vector<Sequence> train = loadSequences(trainFolders, options.keepSpp);
     std::vector<Batch> val;
     std::vector<std::string> valNames;
     if (!options.valDir.empty()) {
@@ -319,8 +324,11 @@ TrainSummary runTraining(const TrainOptions& options) {
             valNames.push_back(sequence.name);
         }
     }
-    say("training on " + std::to_string(train.size()) + " sequences, validating on " + std::to_string(val.size()) +
-        " (loaded in " + std::to_string(int(elapsed())) + " s)");
+    std::int64_t trainSpp = train.front().spp();
+    for (const Sequence& sequence : train) trainSpp = std::min(trainSpp, sequence.spp());
+    say("training on " + std::to_string(train.size()) + " sequences (" + std::to_string(trainSpp) +
+        " samples per pixel held), validating on " + std::to_string(val.size()) + " (loaded in " +
+        std::to_string(int(elapsed())) + " s)");
 
     // Model and optimiser, possibly resumed.
     const fs::path checkpoint = out / "checkpoint.affw", optimizerFile = out / "optimizer.pt",
@@ -354,6 +362,7 @@ TrainSummary runTraining(const TrainOptions& options) {
 
     TrainSummary summary;
     summary.firstStep = step;
+    summary.trainSpp = int(trainSpp);
     summary.bestWeights = (out / "best.affw").string();
     summary.finalWeights = (out / "final.affw").string();
     double elapsedBefore = 0;

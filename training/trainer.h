@@ -37,12 +37,15 @@ struct TrainOptions {
     int threads = 2;            // torch intra-op threads
     std::string device = "cpu"; // torch device: "cpu", or "cuda" where libtorch was built with CUDA
     int maxSequences = 0;       // use only the first N training sequences (0: all)
+    int keepSpp = 0;            // hold only each training sequence's first N samples per pixel in
+                                // memory (0: all; else at least maxSpp), for more sequences in RAM
     bool resume = true;         // continue from outDir's checkpoint when there is one
     bool quiet = false;
 };
 
 struct TrainSummary {
     int firstStep = 0;          // step the run started at (> 0 when resumed)
+    int trainSpp = 0;           // samples per pixel held in memory per training sequence (the fewest)
     int lastStep = 0;
     double seconds = 0;
     double initialValLoss = -1; // validation loss at the run's first evaluation (-1: none)

@@ -344,6 +344,22 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
     }
     options.loss.coarseCell = 0;
     EXPECT_THROW(train::runTraining(options), Error);
+    options.loss.coarseCell = 8;
+    // Keeping fewer samples than a step may draw would cap every step below --max-spp unseen.
+    options.maxSpp = 8;
+    options.keepSpp = 4;
+    EXPECT_THROW(
+        {
+            try {
+                train::runTraining(options);
+            } catch (const Error& e) {
+                EXPECT_NE(std::string(e.what()).find("--keep-spp"), std::string::npos) << e.what();
+                throw;
+            }
+        },
+        Error);
+    options.keepSpp = -1;
+    EXPECT_THROW(train::runTraining(options), Error);
     EXPECT_FALSE(fs::exists("unused-out"));
 }
 
@@ -407,5 +423,16 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     }
     std::cout << "core on the validation sequence: SMAPE " << denoisedSmape / double(frames.size()) << " vs noisy "
               << noisySmape / double(frames.size()) << "\n";
+
+    // --keep-spp holds only the first samples of the 8 rendered per pixel; one step trains on them.
+    EXPECT_EQ(summary.trainSpp, 8);
+    options.outDir = (root / "kept").string();
+    options.steps = 1;
+    options.minSpp = options.maxSpp = 2;
+    options.keepSpp = 2;
+    const train::TrainSummary kept = train::runTraining(options);
+    EXPECT_EQ(kept.trainSpp, 2);
+    EXPECT_EQ(kept.lastStep, 1);
+    EXPECT_TRUE(std::isfinite(kept.finalValLoss));
     fs::remove_all(root);
 }
