@@ -13,7 +13,9 @@ import sys
 import time
 from collections.abc import Callable
 
-from . import report
+import numpy as np
+
+from . import cycles, report
 from .config import CONFIGS, Config
 from .data import (DEFAULT_DATA_DIR, ensure_second_reference, ensure_sequence, find_affinity_binary, find_source_dir,
                    load_references, load_sequence)
@@ -148,10 +150,38 @@ def machine_text() -> str:
     return f"{cpu}, {threads} hardware threads usable, Python {platform.python_version()}"
 
 
+def evaluate_cycles_sequence(data: pathlib.Path, seed: int, methods: list[Method],
+                             config: Config) -> tuple[list[SequenceResult], SequenceResult | None, np.ndarray]:
+    """A Cycles validation sequence (bench/cycles.py): every method, plus Blender's own denoiser,
+    whose time is its whole render. Also the reference noise and the last frame's reference."""
+    sequence = cycles.CyclesSequence(cycles.sequence_folder(data, seed))
+    name = sequence.folder.name
+    blender = sequence.blender_oidn_method()
+    everything = methods + ([blender] if blender else [])
+    if max(config.spp) > sequence.render_spp:
+        raise SystemExit(f"bench: {sequence.folder} has {sequence.render_spp} samples per pixel, "
+                         f"{max(config.spp)} asked")
+    equal_time = tuple(s for s in config.equal_time_spp if s <= sequence.render_spp)
+    results = evaluate_sequence(name, False, sequence.frames, sequence.noisy_seconds_per_frame,
+                                sequence.render_spp, everything, config.spp, equal_time,
+                                config.chart_spp, config.timing_runs)
+    for result in results:
+        if result.method == cycles.BLENDER_OIDN:
+            result.render_seconds_per_frame = sequence.blender_oidn_seconds(result.spp)
+            for frame in result.frames:
+                frame.seconds = 0.0
+    second = sequence.second_reference()
+    noise = None
+    if second is not None and config.reference_noise:
+        images, frames = second
+        noise = reference_noise(name, False, frames, images)
+    return results, noise, sequence.frames[-1]["reference"]
+
+
 def crop_chart(results: list[SequenceResult], reference, sequence: str, spp: int, out: pathlib.Path) -> None:
     outputs = {r.method: r.last_output for r in results if r.spp == spp and r.last_output is not None}
     ours = next((r.method for r in results if r.family == "ours" and r.method in outputs), None)
-    panels = [(label, outputs[label]) for label in ("noisy", ours, "oidn", "svgf") if label in outputs]
+    panels = [(label, outputs[label]) for label in ("noisy", ours, cycles.BLENDER_OIDN, "oidn", "svgf") if label in outputs]
     if panels:
         report.chart_crops(panels, reference, ours or panels[0][0], sequence, spp, out / f"crops_{sequence}.png")
 
@@ -180,18 +210,26 @@ def main(argv: list[str] | None = None) -> None:
     results: list[SequenceResult] = []
     noise: list[SequenceResult] = []  # the second reference against the first, per sequence
     for sequence in config.sequences:
-        folder = ensure_sequence(args.data, sequence, config, binary)
-        frames, noisy_seconds = load_sequence(folder)
-        if config.reference_noise:
-            second = load_references(ensure_second_reference(args.data, sequence, config, binary))
-            noise.append(reference_noise(sequence.name, sequence.failure_case, frames, second))
         start = time.perf_counter()
-        mine = evaluate_sequence(sequence.name, sequence.failure_case, frames, noisy_seconds, config.render_spp,
-                                 methods, config.spp, config.equal_time_spp, config.chart_spp,
-                                 config.timing_runs)
+        if config.name == "cycles":
+            mine, second_reference, last_reference = evaluate_cycles_sequence(args.data, sequence.seed,
+                                                                              methods, config)
+            if second_reference is not None:
+                noise.append(second_reference)
+        else:
+            folder = ensure_sequence(args.data, sequence, config, binary)
+            frames, noisy_seconds = load_sequence(folder)
+            if config.reference_noise:
+                second = load_references(ensure_second_reference(args.data, sequence, config, binary))
+                noise.append(reference_noise(sequence.name, sequence.failure_case, frames, second))
+            mine = evaluate_sequence(sequence.name, sequence.failure_case, frames, noisy_seconds, config.render_spp,
+                                     methods, config.spp, config.equal_time_spp, config.chart_spp,
+                                     config.timing_runs)
         if sequence.failure_case:
             report.chart_temporal_error(mine, sequence.name, config.spp, out / f"temporal_error_{sequence.name}.png")
             crop_chart(mine, frames[-1]["reference"], sequence.name, config.chart_spp, out)
+        elif config.name == "cycles":
+            crop_chart(mine, last_reference, sequence.name, config.chart_spp, out)
         for result in mine:
             result.last_output = None
         results += mine
@@ -209,6 +247,8 @@ def main(argv: list[str] | None = None) -> None:
     for count in config.spp:
         report.chart_error_vs_time(results, count, out / f"error_vs_time_{count}spp.png", config.name)
     equal_time = [m.label for m in methods if m.family == "ours" or m.label in EQUAL_TIME_METHODS]
+    if config.name == "cycles":
+        equal_time.append(cycles.BLENDER_OIDN)
     points = report.equal_time_points(results, equal_time)
     if points:
         report.chart_equal_time(points, out / "equal_time.png", config.name)
@@ -224,6 +264,8 @@ def main(argv: list[str] | None = None) -> None:
 
     elapsed = time.perf_counter() - started
     load = (load_at_start, os.getloadavg()[0])
+    if config.name == "cycles":
+        methods = methods + [cycles.blender_oidn_description()]
     report.write_text(out / "results.md", results_markdown(argv, config, methods, results, noise, points,
                                                           speed_text, notices, elapsed, load))
     print(f"bench: done in {elapsed:.0f} s -> {out}", flush=True)
@@ -240,11 +282,15 @@ def results_markdown(argv: list[str], config: Config, methods: list[Method], res
     text += (f"Machine: {machine_text()}; 1-minute load average {load[0]:.1f} at the start, {load[1]:.1f} at the "
              f"end (timings are wall-clock: other work on the machine inflates them); pyoidn {version('pyoidn')}, "
              f"flip-evaluator {version('flip-evaluator')}.\n\n")
-    text += (f"Sequences ({len(config.sequences)}): {sequences}; {config.frames} frames of "
+    if config.name == "cycles":
+        text += cycles.SUITE_TEXT
+    else:
+        text += (f"Sequences ({len(config.sequences)}): {sequences}; {config.frames} frames of "
              f"{config.width}x{config.height}, references of {config.reference_spp} spp. Each sequence is rendered "
-             f"once at {config.render_spp} spp and an S-spp input is the first S samples of every pixel. Render "
-             f"time at S spp: a render of the same frames without reference (`affinity render --reference-spp "
-             f"0`, path tracing only) scaled by S/{config.render_spp}. Metrics: means over frames, the temporal "
+                 f"once at {config.render_spp} spp and an S-spp input is the first S samples of every pixel. Render "
+                 f"time at S spp: a render of the same frames without reference (`affinity render --reference-spp "
+                 f"0`, path tracing only) scaled by S/{config.render_spp}. ")
+    text += (f"Metrics: means over frames, the temporal "
              f"error over frames 2..N (docs/BENCHMARK.md). Time: each sequence is denoised {config.timing_runs} "
              f"times by a fresh instance of each method; per frame the fastest call counts; ms/Mpx is the median "
              f"over frames 2..N of that, then the mean over sequences.\n")

@@ -90,4 +90,25 @@ TINY = Config(
     timing_runs=2,
 )
 
-CONFIGS = {c.name: c for c in (FULL, TINY)}
+#: Seeds of the Cycles suite's validation scenes (training/cycles/make_data.py --val-seeds),
+#: never trained on.
+CYCLES_VALIDATION_SEEDS = tuple(range(9000, 9006))
+
+# Blender's Cycles through the extension's capture path (bench/cycles.py): the sequences are
+# read from the cache that training/cycles/make_data.py fills, never rendered here; size,
+# frames and reference samples are the ones that command used.
+CYCLES = Config(
+    name="cycles",
+    sequences=tuple(Sequence(f"cycles_{s:05d}", "cycles", s, False) for s in CYCLES_VALIDATION_SEEDS),
+    width=160,
+    height=96,
+    frames=8,
+    spp=(2, 4, 8),
+    equal_time_spp=(2, 4, 8),
+    reference_spp=512,
+    chart_spp=4,
+    speed_sizes=(),
+    timing_runs=2,
+)
+
+CONFIGS = {c.name: c for c in (FULL, TINY, CYCLES)}

@@ -31,6 +31,7 @@ class FrameResult:
     temporal_error: float  # NaN on the first frame (no previous frame)
     temporal_error_tonemapped: float  # likewise
     warping_error: float   # likewise (Lai et al. 2018: the output against its own previous frame)
+    brightness: float      # mean output / mean reference (1: no energy gained or lost)
     seconds: float         # wall time of the method's call on this frame (fastest of the timing runs)
 
 
@@ -102,9 +103,10 @@ def measure(outputs: list[np.ndarray], seconds: list[float], frames: list[dict[s
             temporal = metrics.temporal_error(*pair)
             tonemapped_temporal = metrics.tonemapped_temporal_error(*pair)
             warping = metrics.warping_error(output, outputs[t - 1], frame["motion"], frame["valid"])
+        brightness = float(np.mean(output, dtype=np.float64) / np.mean(reference, dtype=np.float64))
         results.append(FrameResult(t, metrics.smape(output, reference), metrics.relmse(output, reference),
                                    metrics.psnr(output, reference), metrics.flip(output, reference), temporal,
-                                   tonemapped_temporal, warping, seconds[t]))
+                                   tonemapped_temporal, warping, brightness, seconds[t]))
     return results
 
 

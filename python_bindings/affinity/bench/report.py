@@ -29,9 +29,11 @@ SUMMARY_COLUMNS = (
     ("temporal_error", "temporal error", "{:.4f}"),
     ("temporal_error_tonemapped", "temporal error, tone-mapped", "{:.4f}"),
     ("warping_error", "warping error", "{:.5f}"),
+    ("brightness", "brightness / reference", "{:.3f}"),
     ("ms_per_mpx", "ms/Mpx", "{:.0f}"),
 )
-METRICS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "warping_error")
+METRICS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "warping_error",
+           "brightness")
 
 
 # --- writing ---------------------------------------------------------------------------------

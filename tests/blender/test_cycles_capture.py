@@ -1,0 +1,102 @@
+"""Cycles training and benchmark data (training/cycles): a generated scene captured through the
+extension's path, its files, its targets' independence, and the quality of the built-in model
+on it against the noisy input and Blender's own denoiser."""
+
+from __future__ import annotations
+
+import json
+import os
+import sys
+
+import numpy as np
+import pytest
+
+from conftest import CORE_AVAILABLE, ROOT
+
+sys.path.append(os.path.join(ROOT, "training", "cycles"))
+
+import capture  # noqa: E402
+import scene_generator  # noqa: E402
+
+pytestmark = pytest.mark.skipif(not CORE_AVAILABLE, reason="needs the affinity core")
+
+#: A fixed tiny sequence: an interior (indirect light, a small bright bulb), 4 frames.
+SEED, WIDTH, HEIGHT, FRAMES = 7, 64, 40, 4
+SETTINGS = capture.CaptureSettings(spp=4, target_spp=64, targets=2, blender_oidn_spp=(4,))
+
+
+@pytest.fixture(scope="module")
+def captured(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, dict]:
+    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
+                                      kind="interior")
+    scene.cycles.seed = SEED
+    folder = str(tmp_path_factory.mktemp("cycles") / "sequence")
+    return folder, capture.capture_sequence(scene, folder, SETTINGS)
+
+
+def test_a_captured_sequence_has_every_file_and_frame(captured: tuple[str, dict]) -> None:
+    import affinity
+
+    folder, summary = captured
+    files = affinity.list_frame_files(folder)
+    assert [os.path.basename(f) for f in files] == [f"frame_{i:04d}.exr" for i in range(FRAMES)]
+    assert sorted(os.listdir(folder)) == sorted(
+        [os.path.basename(f) for f in files] + ["blender_oidn.npz", "reference_halves.npz",
+                                                "render_summary.json"])
+    with open(os.path.join(folder, "render_summary.json")) as handle:
+        assert json.load(handle) == json.loads(json.dumps(summary))
+    assert summary["reference_spp"] == 128 and summary["frames"] == FRAMES
+    for index, path in enumerate(files):
+        frame = affinity.read_frame(path)
+        assert frame["samples"].shape == (HEIGHT, WIDTH, 4, 18)
+        assert frame["info"]["reference_spp"] == 128 and frame["info"]["frame_index"] == index
+        assert np.isfinite(frame["reference"]).all() and frame["reference"].mean() > 0
+        if index == 0:  # no previous frame: no history anywhere
+            assert not frame["valid"].any()
+        else:
+            assert frame["valid"].mean() > 0.5
+
+
+def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[str, dict]) -> None:
+    import affinity
+
+    folder, summary = captured
+    halves = np.load(os.path.join(folder, "reference_halves.npz"))
+    for index, path in enumerate(affinity.list_frame_files(folder)):
+        frame = affinity.read_frame(path)
+        a, b = halves[f"a_frame{index}"], halves[f"b_frame{index}"]
+        np.testing.assert_allclose(frame["reference"], (a + b) / 2, rtol=1e-6, atol=1e-7)
+        # Other seeds than the input's and each other's: the halves differ by noise only, and
+        # the input's samples are not a part of either.
+        assert 0.0 < capture.smape(a, b) == pytest.approx(summary["target_half_smape"][index])
+        noisy = frame["samples"][..., 0:3].mean(2) + frame["samples"][..., 3:6].mean(2)
+        assert capture.smape(noisy, a) > capture.smape(b, a)
+        assert abs(a.mean() / b.mean() - 1) < 0.1
+
+
+def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blender(
+        captured: tuple[str, dict]) -> None:
+    import affinity
+
+    folder, _ = captured
+    oidn = np.load(os.path.join(folder, "blender_oidn.npz"))
+    denoiser = affinity.Denoiser()
+    ours, noisy, blender = [], [], []
+    for index, path in enumerate(affinity.list_frame_files(folder)):
+        frame = affinity.read_frame(path)
+        reference = frame["reference"]
+        output = denoiser.denoise(frame)
+        ours.append(capture.smape(output, reference))
+        noisy.append(capture.smape(frame["samples"][..., 0:3].mean(2) + frame["samples"][..., 3:6].mean(2),
+                                   reference))
+        blender.append(capture.smape(oidn[f"spp4_frame{index}"], reference))
+    ours_mean, noisy_mean, blender_mean = map(float, (np.mean(ours), np.mean(noisy), np.mean(blender)))
+    print(f"SMAPE at 4 spp: noisy {noisy_mean:.4f}, ours {ours_mean:.4f}, Blender's OIDN {blender_mean:.4f}")
+    assert ours_mean < 0.6 * noisy_mean
+    # A model that loses more ground to Blender's own denoiser than the built-in one did when
+    # this was recorded (bpy 5.0.1) fails here.
+    assert ours_mean < RECORDED_RATIO_TO_BLENDER * 1.05 * blender_mean
+
+
+#: ours / Blender's OIDN SMAPE on this sequence with the built-in model (0.1971 / 0.1909).
+RECORDED_RATIO_TO_BLENDER = 1.03

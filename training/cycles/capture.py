@@ -1,0 +1,180 @@
+"""One Cycles sequence as training or benchmark data, through the extension's own capture path.
+
+The per-sample features, motion and validity come from the extension's ``DenoiseRender`` (the
+very code that feeds the core inside Blender), so the network is trained and judged on exactly
+what it gets from artists' scenes. On top of that, per frame:
+
+- a target: the Combined pass rendered at many samples with a *different* seed, so that its
+  noise is independent of the input's (a Noise2Noise target when it is noisy: the trainer's
+  loss sees its noise as zero-mean);
+- for validation and benchmark sequences, two such targets with different seeds: their mean is
+  the reference and their difference measures how noisy it still is;
+- optionally Blender's own denoiser exactly as users get it: Cycles at S samples with
+  OpenImageDenoise (albedo + normal, prefilter Accurate), and the wall time of that render.
+
+Writes ``frame_NNNN.exr`` files (docs/FRAME_FILES.md, the reference included) and
+``render_summary.json``; Blender's denoised frames go to ``blender_oidn.npz`` (``spp{S}_frame{i}``),
+the two target halves of validation sequences to ``reference_halves.npz`` (``a_frame{i}``,
+``b_frame{i}``).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import time
+from dataclasses import dataclass
+from typing import Any, Callable
+
+import numpy as np
+
+from affinity_denoiser import backend, engine, passes, pipeline
+from affinity_denoiser.overrides import Overrides
+
+#: Added to the scene's seed for the k-th target render (k = 1, 2): far from any seed a
+#: sequence's own frames use, so the target's samples share nothing with the input's.
+TARGET_SEED_STRIDE = 7_919_111
+
+
+@dataclass
+class CaptureSettings:
+    spp: int = 8                    # input samples per pixel (one-sample sub-renders)
+    target_spp: int = 64            # samples of each target render
+    targets: int = 1                # independent target renders per frame (2: measure their noise)
+    blender_oidn_spp: tuple[int, ...] = ()  # Blender's own denoiser at these sample counts
+
+
+def render_combined(scene: Any, samples: int, seed: int, denoise: bool) -> tuple[np.ndarray, float]:
+    """One ordinary Cycles render of the current frame: its Combined RGB and wall seconds.
+
+    ``denoise``: Cycles' OpenImageDenoise as Blender users get it (albedo + normal, prefilter
+    Accurate, on the CPU)."""
+    import bpy
+
+    cycles = scene.cycles
+    captured: list[np.ndarray] = []
+
+    def sink(result: Any) -> None:
+        combined = passes.read_result(result)[passes.PASS_NAMES["combined"][0]]
+        captured.append(np.ascontiguousarray(combined[..., :3]))
+
+    with Overrides() as overrides:
+        overrides.set(scene.render, "engine", engine.IDNAME)
+        overrides.set(scene.render, "use_persistent_data", True)
+        overrides.set(scene.render, "use_compositing", False)
+        overrides.set(scene.render, "use_sequencer", False)
+        overrides.set(cycles, "samples", samples)
+        overrides.set(cycles, "seed", seed)
+        overrides.set(cycles, "use_adaptive_sampling", False)
+        overrides.set_if_present(cycles, "use_sample_subset", False)
+        overrides.set(cycles, "sample_offset", 0)
+        overrides.set(cycles, "use_denoising", denoise)
+        if denoise:
+            overrides.set(cycles, "denoiser", "OPENIMAGEDENOISE")
+            overrides.set(cycles, "denoising_input_passes", "RGB_ALBEDO_NORMAL")
+            overrides.set(cycles, "denoising_prefilter", "ACCURATE")
+            overrides.set_if_present(cycles, "denoising_use_gpu", False)
+        scene.update_tag()  # persistent data would otherwise repeat the previous render
+        engine.session.sink = sink
+        start = time.perf_counter()
+        try:
+            bpy.ops.render.render()
+        finally:
+            engine.session.sink = None
+        seconds = time.perf_counter() - start
+    if not captured:
+        raise pipeline.Cancelled("the render was cancelled")
+    return captured[0], seconds
+
+
+def smape(image: np.ndarray, reference: np.ndarray) -> float:
+    """Mean over pixels and channels of |a - b| / (|a| + |b| + 0.01), as the benchmark's."""
+    return float(np.mean(np.abs(image - reference) / (np.abs(image) + np.abs(reference) + 0.01)))
+
+
+def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
+                     progress: Callable[[str], None] = lambda text: None) -> dict[str, Any]:
+    """Renders every frame of ``scene`` (frame_start..frame_end) into ``folder`` (created; must
+    not hold frames yet) and returns the summary also written to render_summary.json."""
+    import affinity
+
+    frames = list(range(scene.frame_start, scene.frame_end + 1))
+    os.makedirs(folder, exist_ok=True)
+    if affinity.list_frame_files(folder):
+        raise FileExistsError(f"{folder} already holds frame files")
+    scratch = os.path.join(folder, "extension_output")  # the run's own denoised frames
+    start = time.perf_counter()
+    run = pipeline.DenoiseRender(
+        scene, scene.view_layers[0], frames,
+        pipeline.Settings(samples_per_frame=settings.spp, output_folder=scratch),
+        progress=lambda done, total, text: progress(f"input {text}"))
+    run.keep_frames = True
+    results = run.run()
+    input_seconds = time.perf_counter() - start
+    shutil.rmtree(scratch, ignore_errors=True)
+
+    base_seed = int(scene.cycles.seed)
+    target_seconds = 0.0
+    oidn: dict[str, np.ndarray] = {}
+    oidn_seconds: dict[int, list[float]] = {s: [] for s in settings.blender_oidn_spp}
+    target_noise: list[float] = []
+    halves: dict[str, np.ndarray] = {}
+    for index, result in enumerate(results):
+        scene.frame_set(result.frame)
+        progress(f"targets, frame {result.frame}")
+        targets = []
+        for k in range(1, settings.targets + 1):
+            image, seconds = render_combined(scene, settings.target_spp,
+                                             base_seed + k * TARGET_SEED_STRIDE, denoise=False)
+            targets.append(image)
+            target_seconds += seconds
+        if len(targets) == 2:
+            target_noise.append(smape(targets[0], targets[1]))
+            halves[f"a_frame{index}"], halves[f"b_frame{index}"] = targets
+        for spp in settings.blender_oidn_spp:
+            image, seconds = render_combined(scene, spp, base_seed, denoise=True)
+            oidn[f"spp{spp}_frame{index}"] = image
+            oidn_seconds[spp].append(seconds)
+        frame = result.frame_data
+        assert frame is not None
+        frame["reference"] = np.mean(targets, axis=0).astype(np.float32)
+        frame["info"]["reference_spp"] = settings.target_spp * settings.targets
+        frame["info"]["frame_index"] = index
+        affinity.write_frame(os.path.join(folder, affinity.frame_file_name(index)), frame)
+    if oidn:
+        np.savez_compressed(os.path.join(folder, "blender_oidn.npz"), **oidn)
+    if halves:
+        np.savez_compressed(os.path.join(folder, "reference_halves.npz"), **halves)
+
+    timings = run.timings
+    summary = {
+        "scene_name": scene.name,
+        "frames": len(results),
+        "width": int(results[0].noisy.shape[1]),
+        "height": int(results[0].noisy.shape[0]),
+        "spp": settings.spp,
+        "reference_spp": settings.target_spp * settings.targets,
+        "target_renders": settings.targets,
+        "seed": base_seed,
+        "animated_seed": bool(scene.cycles.use_animated_seed),
+        "blender_version": ".".join(str(v) for v in __import__("bpy").app.version),
+        "seconds": {
+            "input": input_seconds,
+            "targets": target_seconds,
+            "sub_renders": float(np.sum(timings.sub_renders)),
+            "features": float(np.sum(timings.features)),
+            "motion": float(np.sum(timings.motion)),
+            "denoise": float(np.sum(timings.denoise)),
+        },
+        # SMAPE between the two independent target halves, per frame: the reference (their
+        # mean) has roughly half this error's variance against the converged image.
+        "target_half_smape": target_noise,
+        "blender_oidn_seconds": {str(s): v for s, v in oidn_seconds.items()},
+        "core": backend.load_core(need_denoiser=False).__file__,
+    }
+    with open(os.path.join(folder, "render_summary.json.tmp"), "w") as handle:
+        json.dump(summary, handle, indent=1)
+    os.replace(os.path.join(folder, "render_summary.json.tmp"),
+               os.path.join(folder, "render_summary.json"))
+    return summary
