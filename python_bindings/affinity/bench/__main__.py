@@ -62,8 +62,8 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--config", choices=sorted(CONFIGS), default="full",
                         help="full (the documented benchmark) or tiny (CI); default full")
     parser.add_argument("--data", type=pathlib.Path,
-                        default=pathlib.Path(os.environ.get("AFFINITY_BENCH_DATA", DEFAULT_DATA_DIR)),
-                        help=f"render cache (default $AFFINITY_BENCH_DATA or {DEFAULT_DATA_DIR})")
+                        help=f"render cache (default $AFFINITY_BENCH_DATA or {DEFAULT_DATA_DIR}; for the "
+                             f"cycles config $AFFINITY_DATA or {cycles.DEFAULT_DATA_DIR})")
     parser.add_argument("--affinity-bin", help="the affinity program (default $AFFINITY_BIN or <build>/core/affinity)")
     parser.add_argument("--model", type=parse_model, action="append", default=[], metavar="LABEL=PATH",
                         help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model, PATH:bf16 the "
@@ -79,6 +79,9 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--reference-noise", action=argparse.BooleanOptionalAction,
                         help="render a second reference per sequence and score it against the first "
                              "(default: on)")
+    parser.add_argument("--save-outputs", type=pathlib.Path, metavar="DIR",
+                        help="write every method's output frames (and the references) as .npy files into "
+                             "DIR/<sequence>/<method>_<spp>spp.npy, e.g. for scripts/cvvdp_score.py")
     parser.add_argument("--speed-sizes", type=parse_size_list,
                         help="WxH,... for the speed table, or 'none' (full default 1920x1080; add 3840x2160 for 4K)")
     return parser.parse_args(argv)
@@ -151,9 +154,10 @@ def machine_text() -> str:
 
 
 def evaluate_cycles_sequence(data: pathlib.Path, seed: int, methods: list[Method],
-                             config: Config) -> tuple[list[SequenceResult], SequenceResult | None, np.ndarray]:
+                             config: Config, keep_outputs: bool
+                             ) -> tuple[list[SequenceResult], SequenceResult | None, list[np.ndarray]]:
     """A Cycles validation sequence (bench/cycles.py): every method, plus Blender's own denoiser,
-    whose time is its whole render. Also the reference noise and the last frame's reference."""
+    whose time is its whole render. Also the reference noise and the references."""
     sequence = cycles.CyclesSequence(cycles.sequence_folder(data, seed))
     name = sequence.folder.name
     blender = sequence.blender_oidn_method()
@@ -164,7 +168,7 @@ def evaluate_cycles_sequence(data: pathlib.Path, seed: int, methods: list[Method
     equal_time = tuple(s for s in config.equal_time_spp if s <= sequence.render_spp)
     results = evaluate_sequence(name, False, sequence.frames, sequence.noisy_seconds_per_frame,
                                 sequence.render_spp, everything, config.spp, equal_time,
-                                config.chart_spp, config.timing_runs)
+                                config.chart_spp, config.timing_runs, keep_outputs)
     for result in results:
         if result.method == cycles.BLENDER_OIDN:
             result.render_seconds_per_frame = sequence.blender_oidn_seconds(result.spp)
@@ -175,7 +179,18 @@ def evaluate_cycles_sequence(data: pathlib.Path, seed: int, methods: list[Method
     if second is not None and config.reference_noise:
         images, frames = second
         noise = reference_noise(name, False, frames, images)
-    return results, noise, sequence.frames[-1]["reference"]
+    return results, noise, [frame["reference"] for frame in sequence.frames]
+
+
+def save_outputs(folder: pathlib.Path, sequence: str, results: list[SequenceResult],
+                 references: list[np.ndarray]) -> None:
+    """Each result's output frames, and the references, as float32 arrays [frames, H, W, 3]."""
+    target = folder / sequence
+    target.mkdir(parents=True, exist_ok=True)
+    np.save(target / "reference.npy", np.stack(references))
+    for result in results:
+        if result.outputs is not None:
+            np.save(target / f"{result.method}_{result.spp}spp.npy", np.stack(result.outputs))
 
 
 def crop_chart(results: list[SequenceResult], reference, sequence: str, spp: int, out: pathlib.Path) -> None:
@@ -190,6 +205,9 @@ def main(argv: list[str] | None = None) -> None:
     argv = sys.argv[1:] if argv is None else argv
     args = parse_arguments(argv)
     config = configure(args)
+    if args.data is None:
+        args.data = (pathlib.Path(os.environ.get("AFFINITY_DATA", cycles.DEFAULT_DATA_DIR)) if config.name == "cycles"
+                     else pathlib.Path(os.environ.get("AFFINITY_BENCH_DATA", DEFAULT_DATA_DIR)))
     started = time.perf_counter()
     load_at_start = os.getloadavg()[0]
     out: pathlib.Path = args.out
@@ -212,26 +230,28 @@ def main(argv: list[str] | None = None) -> None:
     for sequence in config.sequences:
         start = time.perf_counter()
         if config.name == "cycles":
-            mine, second_reference, last_reference = evaluate_cycles_sequence(args.data, sequence.seed,
-                                                                              methods, config)
+            mine, second_reference, references = evaluate_cycles_sequence(
+                args.data, sequence.seed, methods, config, args.save_outputs is not None)
             if second_reference is not None:
                 noise.append(second_reference)
         else:
             folder = ensure_sequence(args.data, sequence, config, binary)
             frames, noisy_seconds = load_sequence(folder)
+            references = [frame["reference"] for frame in frames]
             if config.reference_noise:
                 second = load_references(ensure_second_reference(args.data, sequence, config, binary))
                 noise.append(reference_noise(sequence.name, sequence.failure_case, frames, second))
             mine = evaluate_sequence(sequence.name, sequence.failure_case, frames, noisy_seconds, config.render_spp,
                                      methods, config.spp, config.equal_time_spp, config.chart_spp,
-                                     config.timing_runs)
-        if sequence.failure_case:
+                                     config.timing_runs, args.save_outputs is not None)
+        if sequence.failure_case or config.name == "cycles":
             report.chart_temporal_error(mine, sequence.name, config.spp, out / f"temporal_error_{sequence.name}.png")
-            crop_chart(mine, frames[-1]["reference"], sequence.name, config.chart_spp, out)
-        elif config.name == "cycles":
-            crop_chart(mine, last_reference, sequence.name, config.chart_spp, out)
+            crop_chart(mine, references[-1], sequence.name, config.chart_spp, out)
+        if args.save_outputs is not None:
+            save_outputs(args.save_outputs, sequence.name, mine, references)
         for result in mine:
             result.last_output = None
+            result.outputs = None
         results += mine
         at = [r for r in mine if r.spp == config.chart_spp]
         print(f"bench: {sequence.name} in {time.perf_counter() - start:.1f} s; SMAPE at {config.chart_spp} spp: "
@@ -275,7 +295,8 @@ def results_markdown(argv: list[str], config: Config, methods: list[Method], res
                      noise: list[SequenceResult], points: dict, speed_text: str, notices: list[str], elapsed: float,
                      load: tuple[float, float]) -> str:
     sequences = ", ".join(s.name for s in config.sequences)
-    failure_cases = [s.name for s in config.sequences if s.failure_case]
+    # Sequences with per-frame charts and crops: the failure cases, or every Cycles scene.
+    failure_cases = [s.name for s in config.sequences if s.failure_case or config.name == "cycles"]
     text = f"# Benchmark results ({config.name} configuration)\n\n"
     text += f"Command: `python -m affinity.bench {shlex.join(argv)}`, {elapsed:.0f} s, "
     text += f"{datetime.date.today().isoformat()}.  \n"
@@ -303,7 +324,7 @@ def results_markdown(argv: list[str], config: Config, methods: list[Method], res
         text += "\n## Equal time\n\nSMAPE against render + denoise time per frame, means over sequences.\n\n"
         text += report.equal_time_markdown(points) + "\n![equal time](equal_time.png)\n"
     if failure_cases:
-        text += "\n## Temporal error per frame on the failure-case scenes\n\n"
+        text += "\n## Temporal error per frame\n\n"
         text += "".join(f"![temporal error, {n}](temporal_error_{n}.png)\n" for n in failure_cases)
         text += f"\n## Crops of the last frame, {config.chart_spp} spp\n\n"
         text += "".join(f"![crops, {n}](crops_{n}.png)\n" for n in failure_cases)

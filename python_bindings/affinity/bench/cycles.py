@@ -23,6 +23,8 @@ import affinity
 
 from .methods import Method, Runner
 
+#: Where make_data.py writes by default.
+DEFAULT_DATA_DIR = pathlib.Path.home() / ".cache" / "affinity" / "cycles-v1"
 BLENDER_OIDN = "blender-oidn"
 BLENDER_OIDN_TEXT = ("Blender's Cycles with its own OpenImageDenoise (albedo + normal, prefilter Accurate), "
                      "as users get it; its time is the whole render (sampling and denoising)")

@@ -47,6 +47,7 @@ class SequenceResult:
     render_seconds_per_frame: float  # noisy render at this spp (scaled from the rendered spp)
     frames: list[FrameResult]
     last_output: np.ndarray | None = field(default=None, repr=False)
+    outputs: list[np.ndarray] | None = field(default=None, repr=False)  # every frame, when asked
 
     def mean(self, metric: str) -> float:
         values = [getattr(f, metric) for f in self.frames]
@@ -122,11 +123,13 @@ def reference_noise(name: str, failure_case: bool, frames: list[dict[str, Any]],
 
 def evaluate_sequence(name: str, failure_case: bool, frames: list[dict[str, Any]], noisy_seconds: float,
                       render_spp: int, methods: list[Method], spp: tuple[int, ...],
-                      equal_time_spp: tuple[int, ...], keep_last_at: int, timing_runs: int) -> list[SequenceResult]:
+                      equal_time_spp: tuple[int, ...], keep_last_at: int, timing_runs: int,
+                      keep_outputs: bool = False) -> list[SequenceResult]:
     """All methods at the main sample counts, plus noisy and OIDN at the equal-time ones.
 
     `noisy_seconds` is the noisy render's time per frame at `render_spp`; `keep_last_at` is the
-    sample count whose last output is kept (for the crops); `timing_runs` as in run_methods."""
+    sample count whose last output is kept (for the crops); `timing_runs` as in run_methods;
+    `keep_outputs` keeps every output frame in the results (to be saved for video metrics)."""
     height, width = frames[0]["reference"].shape[:2]
     results = []
     for count in sorted(set(spp) | set(equal_time_spp)):
@@ -139,5 +142,7 @@ def evaluate_sequence(name: str, failure_case: bool, frames: list[dict[str, Any]
                                     noisy_seconds * count / render_spp, measure(outputs, seconds, frames))
             if count == keep_last_at:
                 result.last_output = outputs[-1]
+            if keep_outputs:
+                result.outputs = outputs
             results.append(result)
     return results
