@@ -171,7 +171,6 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         # mean) has roughly half this error's variance against the converged image.
         "target_half_smape": target_noise,
         "blender_oidn_seconds": {str(s): v for s, v in oidn_seconds.items()},
-        "core": backend.load_core(need_denoiser=False).__file__,
     }
     with open(os.path.join(folder, "render_summary.json.tmp"), "w") as handle:
         json.dump(summary, handle, indent=1)
