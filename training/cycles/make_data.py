@@ -16,6 +16,7 @@ again to continue; finished sequences are skipped. The default cache is
 from __future__ import annotations
 
 import argparse
+import glob
 import os
 import shutil
 import sys
@@ -72,8 +73,9 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
         targets=2 if validation else 1,
         blender_oidn_spp=args.blender_oidn_spp if validation else (),
     )
+    for stale in glob.glob(glob.escape(folder) + ".tmp-*"):  # left by a stopped run
+        shutil.rmtree(stale, ignore_errors=True)
     temporary = folder + f".tmp-{os.getpid()}"
-    shutil.rmtree(temporary, ignore_errors=True)
     summary = capture.capture_sequence(scene, temporary, settings)
     os.replace(temporary, folder)
     kind = scene_generator.describe(scene)["kind"]
