@@ -60,7 +60,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                     "stability on the failure-case scenes; speed and memory at 1080p/4K.")
     parser.add_argument("--out", required=True, type=pathlib.Path, help="output folder (created)")
     parser.add_argument("--config", choices=sorted(CONFIGS), default="full",
-                        help="full (the documented benchmark) or tiny (CI); default full")
+                        help="full (the documented benchmark), tiny (CI) or cycles (Blender renders, docs/CYCLES_DATA.md); default full")
     parser.add_argument("--data", type=pathlib.Path,
                         help=f"render cache (default $AFFINITY_BENCH_DATA or {DEFAULT_DATA_DIR}; for the "
                              f"cycles config $AFFINITY_DATA or {cycles.DEFAULT_DATA_DIR})")
