@@ -12,7 +12,8 @@ The pipeline switches the scene to this engine for the duration of a denoise-ren
 
 from __future__ import annotations
 
-from typing import Any, Callable
+import time
+from typing import Any, Callable, TypeVar
 
 import numpy as np
 
@@ -30,6 +31,24 @@ class _Session:
 
 
 session = _Session()
+
+T = TypeVar("T")
+
+
+def render_and_capture(read: Callable[[Any], T]) -> tuple[T | None, float]:
+    """Renders the scene once (``bpy.ops.render.render``, the scene's engine set to this one)
+    and returns what ``read`` made of the finished render result, or None when the render was
+    cancelled, and the render's wall seconds."""
+    import bpy
+
+    captured: list[T] = []
+    session.sink = lambda result: captured.append(read(result))
+    start = time.perf_counter()
+    try:
+        bpy.ops.render.render()
+    finally:
+        session.sink = None
+    return (captured[0] if captured else None), time.perf_counter() - start
 
 
 def _write_result(engine: Any, width: int, height: int, frame: dict[str, np.ndarray]) -> None:

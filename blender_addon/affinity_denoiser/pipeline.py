@@ -278,28 +278,21 @@ class DenoiseRender:
         )
 
     def _sub_render(self, sample: int) -> dict[str, np.ndarray]:
-        import bpy
-
         self.scene.cycles.sample_offset = sample
         # With persistent data Cycles silently repeats the previous sample without this.
         self.scene.update_tag()
-        captured: list[dict[str, np.ndarray]] = []
 
-        def sink(result: Any) -> None:
+        def read(result: Any) -> dict[str, np.ndarray]:
             start = time.perf_counter()
-            captured.append(passes.read_result(result))
+            captured = passes.read_result(result)
             self.timings.read_passes.append(time.perf_counter() - start)
+            return captured
 
-        engine.session.sink = sink
-        start = time.perf_counter()
-        try:
-            bpy.ops.render.render()
-        finally:
-            engine.session.sink = None
-        self.timings.sub_renders.append(time.perf_counter() - start)
-        if not captured:
+        captured, seconds = engine.render_and_capture(read)
+        self.timings.sub_renders.append(seconds)
+        if captured is None:
             raise Cancelled("the render was cancelled")
-        return captured[0]
+        return captured
 
     def _finish_frame(self, denoiser: Any, frame: int, frame_data: dict[str, Any],
                       noisy: np.ndarray, mean: dict[str, np.ndarray], overrides: Overrides,

@@ -59,6 +59,7 @@ def test_a_captured_sequence_has_every_file_and_frame(captured: tuple[str, dict]
 
 def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[str, dict]) -> None:
     import affinity
+    from affinity import metrics
 
     folder, summary = captured
     halves = np.load(os.path.join(folder, "reference_halves.npz"))
@@ -68,15 +69,16 @@ def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[st
         np.testing.assert_allclose(frame["reference"], (a + b) / 2, rtol=1e-6, atol=1e-7)
         # Other seeds than the input's and each other's: the halves differ by noise only, and
         # the input's samples are not a part of either.
-        assert 0.0 < capture.smape(a, b) == pytest.approx(summary["target_half_smape"][index])
+        assert 0.0 < metrics.smape(a, b) == pytest.approx(summary["target_half_smape"][index])
         noisy = frame["samples"][..., 0:3].mean(2) + frame["samples"][..., 3:6].mean(2)
-        assert capture.smape(noisy, a) > capture.smape(b, a)
+        assert metrics.smape(noisy, a) > metrics.smape(b, a)
         assert abs(a.mean() / b.mean() - 1) < 0.1
 
 
 def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blender(
         captured: tuple[str, dict]) -> None:
     import affinity
+    from affinity import metrics
 
     folder, _ = captured
     oidn = np.load(os.path.join(folder, "blender_oidn.npz"))
@@ -86,10 +88,10 @@ def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blende
         frame = affinity.read_frame(path)
         reference = frame["reference"]
         output = denoiser.denoise(frame)
-        ours.append(capture.smape(output, reference))
-        noisy.append(capture.smape(frame["samples"][..., 0:3].mean(2) + frame["samples"][..., 3:6].mean(2),
+        ours.append(metrics.smape(output, reference))
+        noisy.append(metrics.smape(frame["samples"][..., 0:3].mean(2) + frame["samples"][..., 3:6].mean(2),
                                    reference))
-        blender.append(capture.smape(oidn[f"spp4_frame{index}"], reference))
+        blender.append(metrics.smape(oidn[f"spp4_frame{index}"], reference))
     ours_mean, noisy_mean, blender_mean = map(float, (np.mean(ours), np.mean(noisy), np.mean(blender)))
     print(f"SMAPE at 4 spp: noisy {noisy_mean:.4f}, ours {ours_mean:.4f}, Blender's OIDN {blender_mean:.4f}")
     assert ours_mean < 0.6 * noisy_mean

@@ -50,14 +50,11 @@ def render_combined(scene: Any, samples: int, seed: int, denoise: bool) -> tuple
 
     ``denoise``: Cycles' OpenImageDenoise as Blender users get it (albedo + normal, prefilter
     Accurate, on the CPU)."""
-    import bpy
-
     cycles = scene.cycles
-    captured: list[np.ndarray] = []
 
-    def sink(result: Any) -> None:
+    def read(result: Any) -> np.ndarray:
         combined = passes.read_result(result)[passes.PASS_NAMES["combined"][0]]
-        captured.append(np.ascontiguousarray(combined[..., :3]))
+        return np.ascontiguousarray(combined[..., :3])
 
     with Overrides() as overrides:
         overrides.set(scene.render, "engine", engine.IDNAME)
@@ -76,21 +73,10 @@ def render_combined(scene: Any, samples: int, seed: int, denoise: bool) -> tuple
             overrides.set(cycles, "denoising_prefilter", "ACCURATE")
             overrides.set_if_present(cycles, "denoising_use_gpu", False)
         scene.update_tag()  # persistent data would otherwise repeat the previous render
-        engine.session.sink = sink
-        start = time.perf_counter()
-        try:
-            bpy.ops.render.render()
-        finally:
-            engine.session.sink = None
-        seconds = time.perf_counter() - start
-    if not captured:
+        image, seconds = engine.render_and_capture(read)
+    if image is None:
         raise pipeline.Cancelled("the render was cancelled")
-    return captured[0], seconds
-
-
-def smape(image: np.ndarray, reference: np.ndarray) -> float:
-    """Mean over pixels and channels of |a - b| / (|a| + |b| + 0.01), as the benchmark's."""
-    return float(np.mean(np.abs(image - reference) / (np.abs(image) + np.abs(reference) + 0.01)))
+    return image, seconds
 
 
 def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
@@ -98,6 +84,7 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
     """Renders every frame of ``scene`` (frame_start..frame_end) into ``folder`` (created; must
     not hold frames yet) and returns the summary also written to render_summary.json."""
     import affinity
+    from affinity import metrics
 
     frames = list(range(scene.frame_start, scene.frame_end + 1))
     os.makedirs(folder, exist_ok=True)
@@ -130,7 +117,7 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
             targets.append(image)
             target_seconds += seconds
         if len(targets) == 2:
-            target_noise.append(smape(targets[0], targets[1]))
+            target_noise.append(metrics.smape(targets[0], targets[1]))
             halves[f"a_frame{index}"], halves[f"b_frame{index}"] = targets
         for spp in settings.blender_oidn_spp:
             image, seconds = render_combined(scene, spp, base_seed, denoise=True)

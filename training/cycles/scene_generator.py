@@ -377,29 +377,28 @@ def _principled(name: str, colour, roughness: float = 0.5, **inputs: float) -> b
     return material
 
 
-def _emitter(name: str, colour, strength: float) -> bpy.types.Material:
-    """A pure Emission material: lamps and bulbs do not reflect."""
+def _single_shader(name: str, node_type: str, output: str, **inputs) -> bpy.types.Material:
+    """A material whose only shader is one ``node_type`` node, wired to the output's
+    ``output`` socket, its inputs set by name (underscores for spaces)."""
     material = bpy.data.materials.new(name)
     tree = _node_tree(material)
     tree.nodes.remove(tree.nodes["Principled BSDF"])
-    emission = tree.nodes.new("ShaderNodeEmission")
-    emission.inputs["Color"].default_value = colour
-    emission.inputs["Strength"].default_value = strength
-    tree.links.new(emission.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    shader = tree.nodes.new(node_type)
+    for socket, value in inputs.items():
+        shader.inputs[socket.replace("_", " ")].default_value = value
+    tree.links.new(shader.outputs[0], tree.nodes["Material Output"].inputs[output])
     return material
+
+
+def _emitter(name: str, colour, strength: float) -> bpy.types.Material:
+    """A pure Emission material: lamps and bulbs do not reflect."""
+    return _single_shader(name, "ShaderNodeEmission", "Surface", Color=colour, Strength=strength)
 
 
 def _volume(name: str, colour, density: float, anisotropy: float = 0.0) -> bpy.types.Material:
     """A homogeneous Principled Volume with no surface: fog, haze, dust in a sunbeam."""
-    material = bpy.data.materials.new(name)
-    tree = _node_tree(material)
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    volume = tree.nodes.new("ShaderNodeVolumePrincipled")
-    volume.inputs["Color"].default_value = colour
-    volume.inputs["Density"].default_value = density
-    volume.inputs["Anisotropy"].default_value = anisotropy
-    tree.links.new(volume.outputs[0], tree.nodes["Material Output"].inputs["Volume"])
-    return material
+    return _single_shader(name, "ShaderNodeVolumePrincipled", "Volume", Color=colour,
+                          Density=density, Anisotropy=anisotropy)
 
 
 def _translucent_shade(name: str, colour, translucency: float) -> bpy.types.Material:
