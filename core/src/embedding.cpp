@@ -28,16 +28,16 @@ Vec8f load8(const float* p) {
 }
 
 // The input transform of MODEL.md section 1 for `count` consecutive samples into `input`
-// ([count][18]): non-finite values read as 0, radiance (features 0-5) also where negative and
-// then as log(1 + exposure r), depth times the depth scale. The sanitised linear radiance goes to `radiance`
+// ([count][18]): non-finite values read as 0, radiance (features 0-5) also where negative or
+// above kMaxRadiance, and then as log(1 + exposure r), depth times the depth scale. The sanitised linear radiance goes to `radiance`
 // ([count][6] + 2 floats of padding) for the sample sums. One pass, a sample at a time in
 // 8-lane pieces (features 0-7, 8-15, then 16-17). Returns how many radiance values were
-// non-finite or negative.
+// non-finite, negative or above kMaxRadiance.
 long long prepareSamples(const float* samples, int count, InputScales scales, float* input, float* radiance) {
     static_assert(kFeatureCount == 18 && channel::kDepth == 9, "the lanes below follow features.h");
     auto store = [](float* p, Vec8f v) { std::memcpy(p, &v, sizeof v); };
     auto finiteOrZero = [](float v) { return std::fabs(v) <= 3.40282347e38f ? v : 0.0f; };
-    const Vec8f largest = broadcast8(3.40282347e38f);
+    const Vec8f largest = broadcast8(3.40282347e38f), maxRadiance = broadcast8(kMaxRadiance);
     const Vec8i isRadiance = Vec8i{0, 1, 2, 3, 4, 5, 6, 7} < kRadianceChannels;
     const Vec8f depthFactor = Vec8f{1.0f, scales.depth, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
     const Vec8f exposure = broadcast8(scales.exposure);
@@ -53,7 +53,7 @@ long long prepareSamples(const float* samples, int count, InputScales scales, fl
         float* in = input + std::size_t(s) * kFeatureCount;
         const Vec8f low = load8(raw), high = load8(raw + 8);
         // False for NaN and +-Inf; radiance must also not be negative.
-        const Vec8i lowOk = (low >= (isRadiance ? Vec8f{} : -largest)) & (low <= largest);
+        const Vec8i lowOk = (low >= (isRadiance ? Vec8f{} : -largest)) & (low <= (isRadiance ? maxRadiance : largest));
         const Vec8i highOk = (high >= -largest) & (high <= largest);
         bad -= isRadiance & ~lowOk;  // a true comparison is -1
         const Vec8f lowClean = lowOk ? low : Vec8f{};

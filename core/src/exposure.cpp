@@ -26,7 +26,7 @@ float exposureOf(const SampleBands& frame, int height) {
                 for (int s = 0; s < spp; ++s)
                     for (int c = 0; c < 6; ++c) {
                         const float r = pixel[std::size_t(s) * kFeatureCount + std::size_t(channel::kDiffuse + c)];
-                        rgb[c % 3] += r >= 0.0f && r <= 3.40282347e38f ? double(r) : 0.0;  // false for NaN
+                        rgb[c % 3] += r >= 0.0f && r <= kMaxRadiance ? double(r) : 0.0;  // false for NaN
                     }
                 sums[std::size_t(x / kExposureBin)] += (0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]) / spp;
                 ++counts[std::size_t(x / kExposureBin)];

@@ -340,6 +340,26 @@ TEST(Denoiser, BadRadianceGivesFiniteOutputAndAWarningCount) {
     }
 }
 
+// Issue 42, item 3: four samples of 9e37 each sum past the largest float; once that sum was
+// Inf, Inf - Inf spread NaN over a quarter of the frame.
+TEST(Denoiser, HugeFiniteRadianceGivesFiniteOutputAndAWarningCount) {
+    auto frames = test::randomSequence(2, 12, 10, 4, 5);
+    for (int s = 0; s < 4; ++s)
+        for (int c = 0; c < 6; ++c) frames[1].sample(3, 4, s)[channel::kDiffuse + c] = 9e37f;
+    frames[1].sample(7, 2, 0)[channel::kSpecular + 1] = 3.4e38f;
+    for (const bool demodulated : {false, true}) {
+        Denoiser denoiser(randomModel(2, demodulated));
+        denoiser.denoise(frames[0]);
+        DenoiseReport report;
+        EXPECT_TRUE(allFinite(denoiser.denoise(frames[1], &report))) << "demodulated " << demodulated;
+        EXPECT_EQ(report.invalidRadiance, 4 * 6 + 1) << "demodulated " << demodulated;
+        // A frame whose huge value is its first sets the exposure: the next frame is still finite.
+        Denoiser fresh(randomModel(2, demodulated));
+        EXPECT_TRUE(allFinite(fresh.denoise(frames[1])));
+        EXPECT_TRUE(allFinite(fresh.denoise(frames[0])));
+    }
+}
+
 TEST(Denoiser, HistoryIsDroppedWhenTheSizeChangesOrTheCameraJumps) {
     Denoiser denoiser(randomModel());
     auto small = test::randomSequence(2, 8, 6, 1, 1);

@@ -15,7 +15,7 @@
 namespace affinity {
 
 struct DenoiseReport {
-    long long invalidRadiance = 0;  // NaN, Inf or negative radiance values treated as 0
+    long long invalidRadiance = 0;  // NaN, Inf, negative or > kMaxRadiance values treated as 0
     bool usedHistory = false;       // a previous frame contributed
     std::string resetReason;        // why history was dropped before this frame, if it was
     // The sequence's exposure normalisation (docs/MODEL.md section 1): the factor on the radiance
