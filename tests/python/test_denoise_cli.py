@@ -100,3 +100,18 @@ def test_the_cli_takes_a_precision_and_names_a_wrong_one(frames_dir: pathlib.Pat
         frame = affinity.read_frame(path)
         output = denoiser.denoise(frame)
         assert entry["denoised"]["smape"] == pytest.approx(metrics.smape(output, frame["reference"]), rel=1e-9)
+
+
+@pytest.mark.parametrize("flag", ["--help", "-h"])
+def test_help_after_the_command_prints_its_usage(tmp_path: pathlib.Path, flag: str) -> None:
+    """`affinity denoise --help`: the command's usage on stdout, exit 0, nothing written."""
+    result = denoise(flag)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("usage: affinity denoise ")
+    for option in ("--in", "--out", "--model", "--precision", "--force"):
+        assert option in result.stdout
+    assert "--scene" not in result.stdout  # denoise's usage, not render's
+    assert result.stderr == ""
+    with_options = denoise("--in", str(tmp_path / "in"), "--out", str(tmp_path / "out"), flag)
+    assert with_options.returncode == 0 and with_options.stdout == result.stdout
+    assert not (tmp_path / "out").exists()

@@ -98,3 +98,19 @@ def test_cycles_feature_convention_keeps_the_paths_and_changes_the_features(tmp_
     assert summary["feature_convention"] == "cycles"
     result = render(tmp_path / "x", "--feature-convention", "blender")
     assert result.returncode == 1 and "renderer or cycles" in result.stderr
+
+
+@pytest.mark.parametrize("flag", ["--help", "-h"])
+def test_help_after_the_command_prints_its_usage(tmp_path: pathlib.Path, flag: str) -> None:
+    """`affinity render --help` is a request, not an unknown option: the command's usage on
+    stdout, exit 0, and nothing rendered even when other options come with it."""
+    result = subprocess.run([str(CLI), "render", flag], capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.startswith("usage: affinity render ")
+    for option in ("--scene", "--frames", "--spp", "--size", "--reference-spp", "--out", "--force"):
+        assert option in result.stdout
+    assert "--in DIR" not in result.stdout  # render's usage, not denoise's
+    assert result.stderr == ""
+    with_options = render(tmp_path / "seq", flag)
+    assert with_options.returncode == 0 and with_options.stdout == result.stdout
+    assert not (tmp_path / "seq").exists()
