@@ -1,6 +1,9 @@
 #include "render/scene_file.h"
 
+#include <cmath>
+#include <cstdio>
 #include <fstream>
+#include <limits>
 #include <map>
 #include <sstream>
 
@@ -22,14 +25,39 @@ public:
         throw Error("scene " + source_ + ": " + where + ": " + what);
     }
 
+    // Read as double and range-checked before narrowing: a float cannot hold 1e60, and an
+    // infinite coordinate or roughness would only surface as NaN radiance.
     float number(const Json& j, const std::string& where) const {
         if (!j.is_number()) fail(where, "expected a number");
-        return j.get<float>();
+        const double value = j.get<double>();
+        if (!(std::abs(value) <= double(std::numeric_limits<float>::max())))
+            fail(where, "expected a finite number, got " + j.dump());
+        return float(value);
+    }
+    float numberIn(const Json& j, float lo, float hi, const std::string& where) const {
+        const float value = number(j, where);
+        if (value < lo || value > hi)
+            fail(where, "must be in [" + format(lo) + ", " + format(hi) + "], got " + format(value));
+        return value;
     }
     glm::vec3 vec3(const Json& j, const std::string& where) const {
-        if (j.is_number()) return glm::vec3(j.get<float>());
+        if (j.is_number()) return glm::vec3(number(j, where));
         if (!j.is_array() || j.size() != 3) fail(where, "expected [x, y, z] or a number");
         return {number(j[0], where), number(j[1], where), number(j[2], where)};
+    }
+    // Reflectance, F0, transmission tint: fractions of the light, so a surface neither creates
+    // energy (above 1) nor turns radiance negative.
+    glm::vec3 color(const Json& j, const std::string& where) const {
+        const glm::vec3 c = vec3(j, where);
+        if (glm::any(glm::lessThan(c, glm::vec3(0.0f))) || glm::any(glm::greaterThan(c, glm::vec3(1.0f))))
+            fail(where, "a colour must be in [0, 1], got " + format(c));
+        return c;
+    }
+    // Emission and the environment: radiance, any brightness but never negative.
+    glm::vec3 radiance(const Json& j, const std::string& where) const {
+        const glm::vec3 c = vec3(j, where);
+        if (glm::any(glm::lessThan(c, glm::vec3(0.0f)))) fail(where, "radiance must not be negative, got " + format(c));
+        return c;
     }
     std::string string(const Json& j, const std::string& where) const {
         if (!j.is_string()) fail(where, "expected a string");
@@ -57,6 +85,15 @@ public:
             for (const char* k : keys) known = known || key == k;
             if (!known) fail(where, "unknown key \"" + key + "\"");
         }
+    }
+
+    static std::string format(float value) {
+        char text[32];
+        std::snprintf(text, sizeof text, "%g", double(value));
+        return text;
+    }
+    static std::string format(const glm::vec3& v) {
+        return "[" + format(v.x) + ", " + format(v.y) + ", " + format(v.z) + "]";
     }
 
 private:
@@ -90,6 +127,42 @@ Transform readTransform(const Reader& r, const Json& j, const std::string& where
 
 Json vec(const glm::vec3& v) { return Json::array({v.x, v.y, v.z}); }
 
+// Keyframes must be in increasing frame order; `where(k)` is the key path of key k.
+template <typename Key, typename Where>
+void checkKeyOrder(const Reader& r, const std::vector<Key>& keys, const Where& where) {
+    for (std::size_t k = 1; k < keys.size(); ++k)
+        if (keys[k].frame <= keys[k - 1].frame)
+            r.fail(where(k) + ".frame", "keyframes must be in increasing frame order, got " +
+                                            Reader::format(keys[k].frame) + " after " +
+                                            Reader::format(keys[k - 1].frame));
+}
+
+// The camera must look somewhere at every frame: position and target apart, and `up` not along
+// the view direction (glm::lookAt would give NaN). Between two keys both move linearly, so the
+// view vector target - position is d0 + w (d1 - d0): it passes through zero only when d0 and
+// d1 point in opposite directions, at w = |d0| / (|d0| + |d1|).
+void checkCamera(const Reader& r, const Camera& camera, bool keyed) {
+    const auto where = [&](std::size_t k) {
+        return keyed ? "camera.keys[" + std::to_string(k) + "]" : std::string("camera");
+    };
+    if (glm::length(camera.up) <= 0.0f) r.fail("camera.up", "must not be zero");
+    const glm::vec3 up = glm::normalize(camera.up);
+    for (std::size_t k = 0; k < camera.keys.size(); ++k) {
+        const glm::vec3 view = camera.keys[k].target - camera.keys[k].position;
+        if (glm::length(view) <= 0.0f) r.fail(where(k), "position and target coincide");
+        if (glm::length(glm::cross(glm::normalize(view), up)) < 1e-6f)
+            r.fail("camera.up", "parallel to the view direction at " + where(k));
+        if (k == 0) continue;
+        const glm::vec3 previous = camera.keys[k - 1].target - camera.keys[k - 1].position;
+        const float a = glm::length(previous), b = glm::length(view);
+        if (glm::dot(previous, view) < 0.0f && glm::length(glm::cross(previous, view)) <= 1e-6f * a * b) {
+            const float frame = glm::mix(camera.keys[k - 1].frame, camera.keys[k].frame, a / (a + b));
+            r.fail(where(k - 1) + " to " + where(k), "position and target coincide at frame " + Reader::format(frame) +
+                                                         ", where the camera passes through its target");
+        }
+    }
+}
+
 }  // namespace
 
 Scene parseScene(const std::string& text, const std::string& sourceName) {
@@ -114,9 +187,9 @@ Scene parseScene(const std::string& text, const std::string& sourceName) {
             r.onlyKeys(j, {"type", "a", "b", "color", "scale"}, where);
             Texture t;
             t.type = r.choice(r.member(j, "type", where), kTextureTypes, where + ".type");
-            if (j.contains("color")) t.colorA = t.colorB = r.vec3(j["color"], where + ".color");
-            if (j.contains("a")) t.colorA = r.vec3(j["a"], where + ".a");
-            if (j.contains("b")) t.colorB = r.vec3(j["b"], where + ".b");
+            if (j.contains("color")) t.colorA = t.colorB = r.color(j["color"], where + ".color");
+            if (j.contains("a")) t.colorA = r.color(j["a"], where + ".a");
+            if (j.contains("b")) t.colorB = r.color(j["b"], where + ".b");
             if (j.contains("scale")) t.scale = r.number(j["scale"], where + ".scale");
             textureIds[name] = int(scene.textures.size());
             scene.textures.push_back(t);
@@ -137,13 +210,13 @@ Scene parseScene(const std::string& text, const std::string& sourceName) {
             m.texture = textureIds[texture];
         } else if (j.contains("color")) {
             Texture constant;
-            constant.colorA = constant.colorB = r.vec3(j["color"], where + ".color");
+            constant.colorA = constant.colorB = r.color(j["color"], where + ".color");
             m.texture = int(scene.textures.size());
             scene.textures.push_back(constant);
         }
-        if (j.contains("roughness")) m.roughness = r.number(j["roughness"], where + ".roughness");
-        if (j.contains("ior")) m.ior = r.number(j["ior"], where + ".ior");
-        if (j.contains("emission")) m.emission = r.vec3(j["emission"], where + ".emission");
+        if (j.contains("roughness")) m.roughness = r.numberIn(j["roughness"], 0.0f, 1.0f, where + ".roughness");
+        if (j.contains("ior")) m.ior = r.numberIn(j["ior"], 1.0f, 4.0f, where + ".ior");
+        if (j.contains("emission")) m.emission = r.radiance(j["emission"], where + ".emission");
         materialIds[name] = int(scene.materials.size());
         scene.materials.push_back(m);
     }
@@ -175,6 +248,7 @@ Scene parseScene(const std::string& text, const std::string& sourceName) {
                 if (key.contains("scale")) tk.transform.scale = overrides.scale;
                 o.keys.push_back(tk);
             }
+            checkKeyOrder(r, o.keys, [&](std::size_t k) { return where + ".keys[" + std::to_string(k) + "]"; });
         } else {
             o.keys.push_back({0.0f, readTransform(r, j, where)});
         }
@@ -184,14 +258,19 @@ Scene parseScene(const std::string& text, const std::string& sourceName) {
     if (root.contains("environment")) {
         const Json& j = root["environment"];
         r.onlyKeys(j, {"color", "top", "bottom"}, "environment");
-        if (j.contains("color")) scene.environment.top = scene.environment.bottom = r.vec3(j["color"], "environment.color");
-        if (j.contains("top")) scene.environment.top = r.vec3(j["top"], "environment.top");
-        if (j.contains("bottom")) scene.environment.bottom = r.vec3(j["bottom"], "environment.bottom");
+        if (j.contains("color"))
+            scene.environment.top = scene.environment.bottom = r.radiance(j["color"], "environment.color");
+        if (j.contains("top")) scene.environment.top = r.radiance(j["top"], "environment.top");
+        if (j.contains("bottom")) scene.environment.bottom = r.radiance(j["bottom"], "environment.bottom");
     }
 
     const Json& camera = r.member(root, "camera", "top level");
     r.onlyKeys(camera, {"fov", "up", "position", "target", "keys"}, "camera");
-    if (camera.contains("fov")) scene.camera.fovYDegrees = r.number(camera["fov"], "camera.fov");
+    if (camera.contains("fov")) {
+        scene.camera.fovYDegrees = r.number(camera["fov"], "camera.fov");
+        if (!(scene.camera.fovYDegrees > 0.0f && scene.camera.fovYDegrees < 180.0f))
+            r.fail("camera.fov", "must be in (0, 180) degrees, got " + Reader::format(scene.camera.fovYDegrees));
+    }
     if (camera.contains("up")) scene.camera.up = r.vec3(camera["up"], "camera.up");
     if (camera.contains("keys")) {
         if (!camera["keys"].is_array() || camera["keys"].empty()) r.fail("camera.keys", "expected a non-empty array");
@@ -203,10 +282,14 @@ Scene parseScene(const std::string& text, const std::string& sourceName) {
                                          r.vec3(r.member(key, "position", where), where + ".position"),
                                          r.vec3(r.member(key, "target", where), where + ".target")});
         }
+        checkKeyOrder(r, scene.camera.keys, [](std::size_t k) { return "camera.keys[" + std::to_string(k) + "]"; });
     } else {
         scene.camera.keys.push_back({0.0f, r.vec3(r.member(camera, "position", "camera"), "camera.position"),
                                      r.vec3(r.member(camera, "target", "camera"), "camera.target")});
     }
+    checkCamera(r, scene.camera, camera.contains("keys"));
+    // Everything above names the file and the key; this only backs it up (shared with the
+    // procedural scenes).
     scene.validate();
     return scene;
 }

@@ -134,3 +134,88 @@ TEST(SceneFile, WrittenScenesReadBackToTheSameScene) {
         EXPECT_EQ(original.textures[a.texture].colorA, copy.textures[b.texture].colorA);
     }
 }
+
+namespace {
+
+const char* kCamera = R"({"position": [0, 1, 5], "target": [0, 0, 0]})";
+
+// A one-object scene named "demo" (so that only an error naming the file names "test.json"), with
+// the given materials and camera and `extra` top-level keys.
+std::string sceneWith(const std::string& materials, const std::string& camera = kCamera,
+                      const std::string& extra = "") {
+    return R"({"name": "demo", "camera": )" + camera + R"(, "materials": )" + materials + extra +
+           R"(, "objects": [{"shape": "sphere", "material": "grey"}]})";
+}
+
+// The error of a scene that must be refused (empty when it was accepted).
+::testing::AssertionResult refusedWith(const std::string& json, std::initializer_list<const char*> parts) {
+    const std::string message = errorOf(json);
+    if (message.empty()) return ::testing::AssertionFailure() << "accepted: " << json;
+    for (const char* part : parts)
+        if (message.find(part) == std::string::npos)
+            return ::testing::AssertionFailure() << "'" << message << "' does not name '" << part << "'";
+    return ::testing::AssertionSuccess();
+}
+
+}  // namespace
+
+TEST(SceneFile, ColoursAndEmissionOutsideTheirRangeAreRefused) {
+    // Albedo, F0 and tint are fractions of light: above 1 a surface creates energy, below 0
+    // radiance turns negative. Emission and the environment are radiance: never negative.
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse", "color": 1.2}})"),
+                            {"test.json", "materials.grey.color", "[0, 1]", "1.2"}));
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "conductor", "color": [0.5, -0.1, 0.5]}})"),
+                            {"test.json", "materials.grey.color", "-0.1"}));
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "emitter", "color": 0, "emission": [4, -1, 4]}})"),
+                            {"test.json", "materials.grey.emission", "negative"}));
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse", "texture": "t"}})", kCamera,
+                                      R"(, "textures": {"t": {"type": "checker", "a": 0.5, "b": [1, 1, 3]}})"),
+                            {"test.json", "textures.t.b", "[0, 1]"}));
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse"}})", kCamera,
+                                      R"(, "environment": {"top": 1, "bottom": -0.5})"),
+                            {"test.json", "environment.bottom", "negative"}));
+    // The edges are allowed, and a bright lamp or sky is only radiance.
+    EXPECT_EQ(errorOf(sceneWith(R"({"grey": {"type": "emitter", "color": [0, 1, 1], "emission": 500}})", kCamera,
+                                R"(, "environment": {"color": 20})")),
+              "");
+}
+
+TEST(SceneFile, RangeErrorsNameTheFileAndTheMaterial) {
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "conductor", "roughness": 1.5}})"),
+                            {"test.json", "materials.grey.roughness", "[0, 1]", "1.5"}));
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "dielectric", "ior": 0.5}})"),
+                            {"test.json", "materials.grey.ior", "[1, 4]", "0.5"}));
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse"}})",
+                                      R"({"fov": 180, "position": [0, 1, 5], "target": [0, 0, 0]})"),
+                            {"test.json", "camera.fov"}));
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse", "roughness": 1e60}})"),
+                            {"test.json", "materials.grey.roughness", "finite"}));
+}
+
+TEST(SceneFile, KeyframesOutOfOrderNameTheFileAndTheKey) {
+    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse"}})",
+                                      R"({"keys": [{"frame": 4, "position": [0, 1, 5], "target": 0},
+                                                   {"frame": 4, "position": [1, 1, 5], "target": 0}]})"),
+                            {"test.json", "camera.keys[1].frame"}));
+    std::string json = sceneWith(R"({"grey": {"type": "diffuse"}})");
+    json.replace(json.find(R"("material": "grey"})"), 19,
+                 R"("material": "grey", "keys": [{"frame": 2}, {"frame": 1}]})");
+    EXPECT_TRUE(refusedWith(json, {"test.json", "objects[0].keys[1].frame"}));
+}
+
+TEST(SceneFile, CoincidingCameraPositionAndTargetNameTheFileAndTheKey) {
+    const std::string grey = R"({"grey": {"type": "diffuse"}})";
+    EXPECT_TRUE(refusedWith(sceneWith(grey, R"({"position": [1, 2, 3], "target": [1, 2, 3]})"),
+                            {"test.json", "camera", "position and target coincide"}));
+    EXPECT_TRUE(refusedWith(sceneWith(grey, R"({"keys": [{"frame": 0, "position": [0, 1, 5], "target": 0},
+                                                          {"frame": 8, "position": 2, "target": 2}]})"),
+                            {"test.json", "camera.keys[1]", "position and target coincide"}));
+    // Keys that are fine themselves, but the camera passes through its target between them
+    // (at frame 2 of 0..8): that frame would fail to render.
+    EXPECT_TRUE(refusedWith(sceneWith(grey, R"({"keys": [{"frame": 0, "position": [0, 0, 1], "target": 0},
+                                                          {"frame": 8, "position": [0, 0, -3], "target": 0}]})"),
+                            {"test.json", "camera.keys[0]", "camera.keys[1]", "coincide", "frame 2"}));
+    // An up vector along the view direction leaves the camera's orientation undefined.
+    EXPECT_TRUE(refusedWith(sceneWith(grey, R"({"up": [0, 1, 0], "position": [0, 5, 0], "target": 0})"),
+                            {"test.json", "camera.up", "view direction"}));
+}
