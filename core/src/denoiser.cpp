@@ -3,6 +3,7 @@
 #include "affinity/denoiser.h"
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <cstring>
@@ -211,7 +212,27 @@ struct Denoiser::State {
         double milliseconds = 0.0;
     } pending;
 
+    // Set while a call runs (Exclusive): concurrent calls on one sequence's state corrupted it.
+    std::atomic<bool> busy{false};
+    std::function<bool()> interruptCheck;
+
     State(Model m, DenoiserOptions o) : model(std::move(m)), options(o) {}
+    // Throws Interrupted when the interrupt check asks to stop; called between steps, never
+    // inside a parallel region.
+    void checkInterrupt() const {
+        if (interruptCheck && interruptCheck()) throw Interrupted("denoise: interrupted");
+    }
+    // A frame left half-done (interrupted, or failed) leaves histories that do not fit
+    // together: the next frame starts a new sequence.
+    template <typename Pipeline>
+    std::vector<float> dropHistoryOnFailure(Pipeline&& pipeline) {
+        try {
+            return pipeline();
+        } catch (...) {
+            hasHistory = false;
+            throw;
+        }
+    }
     // Whether a frame of this size, camera and mean depth can use the history (the caller checks
     // that there is one); if not, why (for DenoiseReport::resetReason).
     bool historyApplies(int width, int height, const FrameInfo& info, float meanDepth, std::string& reason) const;
@@ -251,6 +272,27 @@ struct Denoiser::State {
                                        StageClock& clock, DenoiseReport* report);
 };
 
+namespace {
+
+// Holds a denoiser's state for one call; a second call at the same time is refused.
+class Exclusive {
+public:
+    Exclusive(std::atomic<bool>& busy, const char* call) : busy_(busy) {
+        if (busy_.exchange(true, std::memory_order_acquire))
+            throw Error(std::string(call) +
+                        ": the Denoiser is busy with another call (from another thread?): it holds one sequence's "
+                        "state and takes one call at a time; give each thread its own Denoiser");
+    }
+    ~Exclusive() { busy_.store(false, std::memory_order_release); }
+    Exclusive(const Exclusive&) = delete;
+    Exclusive& operator=(const Exclusive&) = delete;
+
+private:
+    std::atomic<bool>& busy_;
+};
+
+}  // namespace
+
 Denoiser::Denoiser(Model model, DenoiserOptions options)
     : state_(std::make_unique<State>(std::move(model), options)) {}
 Denoiser::~Denoiser() = default;
@@ -260,11 +302,20 @@ Denoiser& Denoiser::operator=(Denoiser&&) noexcept = default;
 const Model& Denoiser::model() const { return state_->model; }
 const DenoiserOptions& Denoiser::options() const { return state_->options; }
 
-void Denoiser::reset() { state_->hasHistory = false; }
+void Denoiser::reset() {
+    const Exclusive call(state_->busy, "reset");
+    state_->hasHistory = false;
+}
+
+void Denoiser::setInterruptCheck(std::function<bool()> check) {
+    const Exclusive call(state_->busy, "setInterruptCheck");
+    state_->interruptCheck = std::move(check);
+}
 
 void Denoiser::State::runBlock(const std::vector<Conv2d>& block, std::size_t first, std::size_t end,
                               FeatureMap& map) {
     for (std::size_t j = first; j < end; ++j) {
+        checkInterrupt();
         FeatureMap next = pool.take(map.height(), map.width(), block[j].outChannels());
         block[j].apply(map, Activation::LeakyRelu, next);
         pool.give(map);
@@ -277,6 +328,7 @@ UnetTail Denoiser::State::runUnet(const Network& net, const FeatureMap& embeddin
     const std::size_t levels = net.encoder.size();
     std::vector<FeatureMap> encoderOut(levels);  // the skip connections
     for (std::size_t level = 0; level < levels; ++level) {
+        checkInterrupt();
         const std::vector<Conv2d>& block = net.encoder[level];
         FeatureMap& out = encoderOut[level];
         if (level == 0) {
@@ -298,6 +350,7 @@ UnetTail Denoiser::State::runUnet(const Network& net, const FeatureMap& embeddin
     runBlock(net.bottleneck, 0, net.bottleneck.size(), low);
     // Decoder levels, the coarser level read upsampled; level 0 stops before its last convolution.
     for (std::size_t l = levels; l-- > 0;) {
+        checkInterrupt();
         FeatureMap& skip = encoderOut[l];
         const std::vector<Conv2d>& block = net.decoder[l];
         if (l == 0 && block.size() == 1) return UnetTail{std::move(low), std::move(skip)};
@@ -457,6 +510,7 @@ void Denoiser::State::filterInBands(const Network& net, const UnetTail& tail, co
 
     double parameterMs = 0.0, spatialMs = 0.0, temporalMs = 0.0;
     for (const BandStep& step : bandSchedule(height, kBandRows, radii)) {
+        checkInterrupt();
         auto start = std::chrono::steady_clock::now();
         parametersAndAccumulation(net, tail, step.begin, step.end, params, embedding, historyEmbedding, historySignal,
                                   filterIn);
@@ -526,6 +580,7 @@ std::vector<float> Denoiser::denoise(const SampleFrame& frame, DenoiseReport* re
 
 std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport* report) {
     State& s = *state_;
+    const Exclusive call(s.busy, "denoise");
     if (frame.width < 1 || frame.height < 1 || frame.spp < 1) throw Error("denoise: the frame is empty");
     if (!frame.samples || !frame.motion || !frame.valid) throw Error("denoise: the frame lacks a buffer");
     if (s.pending.spp > 0)
@@ -534,8 +589,10 @@ std::vector<float> Denoiser::denoise(const SampleFrameView& frame, DenoiseReport
                     "discardSamples())");
 
     s.pool.setKeepRatio(FeatureMapPool::kKeepRatio);
-    return s.denoiseWholeFrame(SampleBands(frame.samples, frame.height, frame.width, frame.spp), frame.height,
-                               frame.motion, frame.valid, frame.info, report);
+    return s.dropHistoryOnFailure([&] {
+        return s.denoiseWholeFrame(SampleBands(frame.samples, frame.height, frame.width, frame.spp), frame.height,
+                                   frame.motion, frame.valid, frame.info, report);
+    });
 }
 
 std::vector<float> Denoiser::State::denoiseWholeFrame(const SampleBands& samples, int height, const float* motion,
@@ -570,6 +627,7 @@ std::vector<float> Denoiser::State::denoiseWholeFrame(const SampleBands& samples
 
 std::vector<SampleBand> Denoiser::sampleBands(int width, int height, int spp) {
     State& s = *state_;
+    const Exclusive call(s.busy, "sampleBands");
     State::Pending& p = s.pending;
     if (width < 1 || height < 1 || spp < 1) throw Error("sampleBands: the frame is empty");
     if (spp > SampleFrame::kMaxSpp)
@@ -601,6 +659,7 @@ std::vector<SampleBand> Denoiser::sampleBands(int width, int height, int spp) {
 
 void Denoiser::addSamples(int width, int height, int spp, const float* samples) {
     State& s = *state_;
+    const Exclusive call(s.busy, "addSamples");
     const auto start = std::chrono::steady_clock::now();
     if (width < 1 || height < 1 || spp < 1) throw Error("addSamples: the batch is empty");
     if (!samples) throw Error("addSamples: the batch has no samples buffer");
@@ -637,6 +696,7 @@ void Denoiser::addSamples(int width, int height, int spp, const float* samples) 
 std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid, const FrameInfo& info,
                                          DenoiseReport* report) {
     State& s = *state_;
+    const Exclusive call(s.busy, "finishFrame");
     State::Pending& p = s.pending;
     if (p.spp == 0) throw Error("finishFrame: no samples were added with addSamples() or lent with sampleBands()");
     if (!motion || !valid) throw Error("finishFrame: the frame lacks a motion or validity buffer");
@@ -650,7 +710,8 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
         samples.bandRows = bands.front().height();
         samples.width = p.width;
         samples.spp = bands.front().channels() / kFeatureCount;
-        return s.denoiseWholeFrame(samples, p.height, motion, valid, info, report, &bands);
+        return s.dropHistoryOnFailure(
+            [&] { return s.denoiseWholeFrame(samples, p.height, motion, valid, info, report, &bands); });
     }
     const Network& net = s.model.network();
     DenoiseReport local;
@@ -674,10 +735,12 @@ std::vector<float> Denoiser::finishFrame(const float* motion, const float* valid
     p.spp = 0;
     clock.mark("embedding");
     local.stageMilliseconds.back().second += addMilliseconds;  // the batches' share of the stage
-    return s.denoiseEmbedded(std::move(embedding), depth, info, motion, valid, local, clock, report);
+    return s.dropHistoryOnFailure(
+        [&] { return s.denoiseEmbedded(std::move(embedding), depth, info, motion, valid, local, clock, report); });
 }
 
 void Denoiser::discardSamples() {
+    const Exclusive call(state_->busy, "discardSamples");
     state_->pending.spp = 0;
     for (FeatureMap& band : state_->pending.lentBands) state_->pool.give(band);
     state_->pending.lentBands.clear();
@@ -731,6 +794,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(FeatureMap embedding, float 
     s.pool.give(s.embeddingHistory);  // read: their memory serves the U-Net
     s.pool.give(s.signalHistory);
     clock.mark("warp history");
+    s.checkInterrupt();
 
     // 4-7. U-Net, then the kernel parameters, accumulation and kernels band by band.
     UnetTail tail = s.runUnet(net, embedding, historyEmbedding);

@@ -112,7 +112,10 @@ class Denoiser:
     Feed frames (dicts as returned by ``read_frame``) in sequence order; each call returns the
     denoised linear RGB radiance as float32 (H, W, 3). Call ``reset()`` at a camera cut; the
     history is also dropped automatically when the frame size changes or the camera jumps.
-    The GIL is released while denoising.
+    The GIL is released while denoising; Ctrl-C (KeyboardInterrupt) stops a frame between its
+    steps, and the next frame then starts a new sequence as after ``reset()``. A Denoiser takes
+    one call at a time: a call from another thread while one runs raises ``affinity.Error``
+    (give each thread its own Denoiser). It cannot be copied or pickled.
 
     ``precision`` "bf16" takes the convolutions' products in bfloat16 on CPUs that have
     AVX512-BF16 (``affinity.bfloat16_supported()``): 0.76-0.78x the time on Zen 4, SMAPE within 0.1 %
@@ -199,3 +202,13 @@ class Denoiser:
 
     def reset(self) -> None:
         self._native.reset()
+
+    # A Denoiser is one sequence's history in native memory: a copy would share it, and two
+    # copies fed different frames would corrupt each other's sequence.
+    def _refuse_copy(self, *_: Any) -> Any:
+        raise TypeError(
+            "an affinity.Denoiser holds one sequence's history and cannot be copied or pickled; "
+            "make a new affinity.Denoiser(model) instead (its history starts empty)"
+        )
+
+    __copy__ = __deepcopy__ = __reduce_ex__ = _refuse_copy

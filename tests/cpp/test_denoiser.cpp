@@ -1,5 +1,8 @@
 // The sequence denoiser's contract: invariances, temporal behaviour, odd sizes, bad input.
 #include <cmath>
+#include <condition_variable>
+#include <mutex>
+#include <thread>
 
 #include <gtest/gtest.h>
 #include <omp.h>
@@ -357,6 +360,84 @@ TEST(Denoiser, HugeFiniteRadianceGivesFiniteOutputAndAWarningCount) {
         Denoiser fresh(randomModel(2, demodulated));
         EXPECT_TRUE(allFinite(fresh.denoise(frames[1])));
         EXPECT_TRUE(allFinite(fresh.denoise(frames[0])));
+    }
+}
+
+// Issue 42, item 1: two threads on one denoiser crashed or failed with internal errors. Thread
+// A is held inside its call (in the interrupt check) while this thread tries the others.
+TEST(Denoiser, ASecondCallWhileOneRunsIsRefusedAndTheFirstIsUnharmed) {
+    const auto frames = test::randomSequence(1, 12, 10, 2, 6);
+    Denoiser denoiser(randomModel(3));
+    std::mutex mutex;
+    std::condition_variable changed;
+    bool inside = false, released = false;
+    denoiser.setInterruptCheck([&] {
+        std::unique_lock<std::mutex> lock(mutex);
+        inside = true;
+        changed.notify_all();
+        changed.wait(lock, [&] { return released; });
+        return false;
+    });
+    std::vector<float> first;
+    std::thread a([&] { first = denoiser.denoise(frames[0]); });
+    {
+        std::unique_lock<std::mutex> lock(mutex);
+        changed.wait(lock, [&] { return inside; });
+    }
+    auto expectBusy = [](auto call, const char* name) {
+        try {
+            call();
+            ADD_FAILURE() << name << " ran beside another call";
+        } catch (const Error& e) {
+            EXPECT_NE(std::string(e.what()).find(std::string(name) + ": the Denoiser is busy"), std::string::npos)
+                << e.what();
+        }
+    };
+    expectBusy([&] { denoiser.denoise(frames[0]); }, "denoise");
+    expectBusy([&] { denoiser.addSamples(12, 10, 2, frames[0].samples().data()); }, "addSamples");
+    expectBusy([&] { denoiser.reset(); }, "reset");
+    {
+        std::lock_guard<std::mutex> lock(mutex);
+        released = true;
+    }
+    changed.notify_all();
+    a.join();
+    Denoiser alone(randomModel(3));
+    EXPECT_EQ(first, alone.denoise(frames[0]));
+    EXPECT_EQ(denoiser.denoise(frames[0]).size(), first.size());  // free again once the call is over
+}
+
+// Issue 42, item 11: the interrupt check runs between the steps of a frame; when it says stop,
+// the frame is abandoned and the next one starts a new sequence, as after reset().
+TEST(Denoiser, AnInterruptAbandonsTheFrameAndTheNextStartsANewSequence) {
+    const auto frames = test::randomSequence(3, 12, 10, 2, 7);
+    Denoiser reference(randomModel(4));
+    int checksPerFrame = 0;
+    reference.setInterruptCheck([&] { return ++checksPerFrame, false; });
+    reference.denoise(frames[0]);
+    // Every U-Net level, convolution and band of the kernels (7 on this small model, 12 rows):
+    // a prompt stop, not one check per frame.
+    EXPECT_GE(checksPerFrame, 6);
+    Denoiser fresh(randomModel(4));
+    const std::vector<float> alone = fresh.denoise(frames[2]);
+
+    for (const bool streamed : {false, true}) {
+        Denoiser denoiser(randomModel(4));
+        denoiser.denoise(frames[0]);
+        int calls = 0;
+        denoiser.setInterruptCheck([&] { return ++calls == checksPerFrame / 2; });
+        if (streamed) {
+            denoiser.addSamples(12, 10, 2, frames[1].samples().data());
+            EXPECT_THROW(denoiser.finishFrame(frames[1].motion().data(), frames[1].valid().data(), frames[1].info),
+                         Interrupted);
+        } else {
+            EXPECT_THROW(denoiser.denoise(frames[1]), Interrupted);
+        }
+        EXPECT_EQ(calls, checksPerFrame / 2) << "stopped at once";
+        denoiser.setInterruptCheck({});
+        DenoiseReport report;
+        EXPECT_EQ(denoiser.denoise(frames[2], &report), alone) << "streamed " << streamed;
+        EXPECT_FALSE(report.usedHistory);
     }
 }
 

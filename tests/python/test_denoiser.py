@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+import copy
 import os
 import pathlib
+import pickle
+import signal
 import subprocess
+import threading
+from typing import Any, Callable
 
 import numpy as np
 import pytest
@@ -256,3 +261,63 @@ def test_the_report_gives_the_memory_of_the_denoisers_buffers(frame_files: list[
     # steady once the history exists.
     assert sizes[1] > 36 * 24 * 32 * 4
     assert sizes[2] == sizes[1]
+
+
+def _large_frame(frame: dict, tiles: int = 16) -> dict:
+    """The frame tiled `tiles` x `tiles` times (640x480 from 40x30): a denoise long enough that
+    another thread or a signal arrives while it runs."""
+    return {
+        **frame,
+        "samples": np.ascontiguousarray(np.tile(frame["samples"], (tiles, tiles, 1, 1))),
+        "motion": np.ascontiguousarray(np.tile(frame["motion"], (tiles, tiles, 1))),
+        "valid": np.ascontiguousarray(np.tile(frame["valid"], (tiles, tiles))),
+        "reference": None,
+    }
+
+
+def test_a_second_call_while_one_runs_is_refused(sequence: list[dict]) -> None:
+    """Issue 42, item 1: two threads on one Denoiser crashed or failed with internal errors."""
+    frame = _large_frame(sequence[0])
+    denoiser = affinity.Denoiser()
+    start = threading.Barrier(2)
+    outputs: list[np.ndarray] = []
+    errors: list[Exception] = []
+
+    def call() -> None:
+        start.wait()
+        try:
+            outputs.append(denoiser.denoise(frame))
+        except affinity.Error as error:
+            errors.append(error)
+
+    threads = [threading.Thread(target=call) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join()
+    assert len(outputs) == 1 and len(errors) == 1
+    assert "the Denoiser is busy with another call" in str(errors[0])
+    np.testing.assert_array_equal(outputs[0], affinity.Denoiser().denoise(frame))
+
+
+def test_ctrl_c_stops_a_frame_and_the_next_starts_a_new_sequence(sequence: list[dict]) -> None:
+    """Issue 42, item 11: KeyboardInterrupt came only when the native call returned. Now the
+    frame is abandoned, so the frame after it has no history to use."""
+    frames = [_large_frame(frame) for frame in sequence]
+    denoiser = affinity.Denoiser()
+    denoiser.denoise(frames[0])
+    timer = threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT))
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        denoiser.denoise(frames[1])
+    timer.join()
+    after = denoiser.denoise(frames[2])
+    assert denoiser.last_report["used_history"] is False
+    np.testing.assert_array_equal(after, affinity.Denoiser().denoise(frames[2]))
+
+
+@pytest.mark.parametrize("copy_call", [copy.copy, copy.deepcopy, pickle.dumps], ids=["copy", "deepcopy", "pickle"])
+def test_a_denoiser_cannot_be_copied(copy_call: Callable[[Any], Any]) -> None:
+    """Issue 42, item 12: copy.copy shared the native history between two objects."""
+    with pytest.raises(TypeError, match="cannot be copied or pickled"):
+        copy_call(affinity.Denoiser())

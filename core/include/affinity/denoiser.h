@@ -2,8 +2,11 @@
 // The stateful sequence denoiser: feed a sequence's frames in order, get denoised linear RGB
 // back. It keeps the temporal state (accumulated embeddings and radiance, previous output
 // and affinity features) between calls; reset() forgets it, as at a camera cut. Single-frame
-// use is the same call on a fresh (or reset) denoiser.
+// use is the same call on a fresh (or reset) denoiser. Being one sequence's state, it takes one
+// call at a time: a call made while another runs (from another thread) throws affinity::Error;
+// separate denoisers run side by side.
 #include <cstddef>
+#include <functional>
 #include <memory>
 #include <string>
 #include <utility>
@@ -79,6 +82,12 @@ public:
     PendingFrame pending() const;
 
     void reset();
+
+    // Called on the calling thread between the steps of a frame (each convolution, each band of
+    // the kernels; at 1080p the longest step takes tens of milliseconds): when it returns true,
+    // the frame is abandoned, the call throws affinity::Interrupted, and the next frame starts a
+    // new sequence as after reset(). For Ctrl-C in the CLI and Python. Empty: never interrupted.
+    void setInterruptCheck(std::function<bool()> check);
 
     const Model& model() const;
     const DenoiserOptions& options() const;

@@ -11,4 +11,10 @@ public:
     explicit Error(const std::string& message) : std::runtime_error(message) {}
 };
 
+// A call abandoned because its interrupt check asked it to stop (Ctrl-C): not the input's fault.
+class Interrupted : public Error {
+public:
+    explicit Interrupted(const std::string& message) : Error(message) {}
+};
+
 }  // namespace affinity
