@@ -17,6 +17,8 @@
 #include "affinity/metrics.h"
 #include "arguments.h"
 #include "commands.h"
+#include "interrupt.h"
+#include "output_folder.h"
 #include "progress_bar.h"
 
 namespace affinity::cli {
@@ -25,10 +27,11 @@ namespace fs = std::filesystem;
 
 namespace {
 
-std::string numbered(const char* prefix, int index, const char* extension) {
-    char name[64];
-    std::snprintf(name, sizeof name, "%s_%04d.%s", prefix, index, extension);
-    return name;
+// "denoised_0007" for the input frame_0007.exr: outputs follow the input files, so that no two
+// inputs share an output whatever frame numbers the files hold.
+std::string outputStem(const std::string& input) {
+    const std::string name = fs::path(input).stem().string();
+    return "denoised_" + name.substr(name.find('_') + 1);
 }
 
 nlohmann::json errors(const std::vector<float>& image, const std::vector<float>& reference) {
@@ -53,32 +56,43 @@ int denoiseCommand(const std::vector<std::string>& args) {
         for (const auto& entry : fs::directory_iterator(out))
             if (entry.path().filename().string().rfind("denoised_", 0) == 0)
                 throw Error("output folder " + out.string() + " already holds denoised frames; pass --force to overwrite them");
-    fs::create_directories(out);
-
+    // The model is read before the output folder is made: a refused run leaves nothing behind.
     Denoiser denoiser(a.has("--model") ? Model::fromFile(a.text("--model"), precision) : Model::builtIn(precision));
+    const OutputFolder folder(out);
+    installInterruptHandlers();
+    denoiser.setInterruptCheck(interruptRequested);
+
     nlohmann::json perFrame = nlohmann::json::array();
     ProgressBar bar("denoise");
     double totalSeconds = 0.0;
-    for (std::size_t i = 0; i < frames.size(); ++i) {
+    for (std::size_t i = 0; i < frames.size() && !interruptRequested(); ++i) {
         // The samples go straight into memory the denoiser lends, which serves its later stages
         // once they are embedded: a frame's samples are not held beside all of its maps.
         DenoiseReport report;
-        const DenoisedFile file = denoiseFrameFile(denoiser, frames[i], NoisyMean::WithReference, &report);
+        DenoisedFile file;
+        try {
+            file = denoiseFrameFile(denoiser, frames[i], NoisyMean::WithReference, &report);
+        } catch (const Interrupted&) {
+            break;
+        }
         const double seconds = file.denoiseMilliseconds / 1e3;
         const SampleFrame& frame = file.frame;
         const std::vector<float>& denoised = file.denoised;
         totalSeconds += seconds;
-        const int index = frame.info.frameIndex;
-        writeRgbExr((out / numbered("denoised", index, "exr")).string(), frame.width(), frame.height(), denoised.data());
-        writeTonemappedPng((out / numbered("denoised", index, "png")).string(), frame.width(), frame.height(),
-                           denoised.data());
-        nlohmann::json entry = {{"frame", index}, {"milliseconds", seconds * 1e3},
-                                {"used_history", report.usedHistory}, {"invalid_radiance", report.invalidRadiance},
+        const std::string stem = outputStem(frames[i]);
+        writeRgbExr((out / (stem + ".exr")).string(), frame.width(), frame.height(), denoised.data());
+        writeTonemappedPng((out / (stem + ".png")).string(), frame.width(), frame.height(), denoised.data());
+        nlohmann::json entry = {{"input", fs::path(frames[i]).filename().string()},
+                                {"output", stem + ".exr"},
+                                {"frame", frame.info.frameIndex},
+                                {"milliseconds", seconds * 1e3},
+                                {"used_history", report.usedHistory},
+                                {"invalid_radiance", report.invalidRadiance},
                                 {"exposure", report.exposure}};
         if (!report.resetReason.empty()) entry["reset_reason"] = report.resetReason;
         if (report.invalidRadiance > 0)
-            std::fprintf(stderr, "\nwarning: %s: %lld NaN/Inf/negative radiance values read as 0\n", frames[i].c_str(),
-                         report.invalidRadiance);
+            std::fprintf(stderr, "\nwarning: %s: %lld NaN/Inf/negative/huge radiance values read as 0\n",
+                         frames[i].c_str(), report.invalidRadiance);
         if (frame.hasReference()) {
             entry["noisy"] = errors(file.noisy, frame.reference());
             entry["denoised"] = errors(denoised, frame.reference());
@@ -86,17 +100,26 @@ int denoiseCommand(const std::vector<std::string>& args) {
         perFrame.push_back(entry);
         bar.update(double(i + 1) / double(frames.size()));
     }
+    const std::size_t done = perFrame.size();
+    const bool interrupted = done < frames.size();
     const nlohmann::json summary = {{"input", in.string()},
                                     {"model", denoiser.model().source()},
                                     {"precision", precisionName(precision)},
-                                    {"frames", frames.size()},
-                                    {"milliseconds_per_frame", totalSeconds * 1e3 / double(frames.size())},
+                                    {"frames", done},
+                                    {"input_frames", frames.size()},
+                                    {"interrupted", interrupted},
+                                    {"milliseconds_per_frame", done > 0 ? totalSeconds * 1e3 / double(done) : 0.0},
                                     {"per_frame", perFrame}};
     writeAtomically((out / "denoise_summary.json").string(), [&](const std::string& temporary) {
         std::ofstream file(temporary);
         file << summary.dump(2) << "\n";
         if (!file) throw Error("cannot write " + (out / "denoise_summary.json").string());
     });
+    if (interrupted) {
+        std::fprintf(stderr, "\naffinity denoise: interrupted after %zu of %zu frames; those are kept in %s\n", done,
+                     frames.size(), out.string().c_str());
+        return interruptedExitStatus();
+    }
     bar.finish(std::to_string(frames.size()) + " frames, " +
                std::to_string(int(totalSeconds * 1e3 / double(frames.size()))) + " ms per frame -> " + out.string());
     return 0;

@@ -14,6 +14,41 @@
 namespace affinity {
 namespace {
 
+// The temporary files being written, for removeTemporaryFilesNow(). A slot is claimed, filled,
+// then published (`ready`), so that a signal handler reads only whole paths.
+struct TemporarySlot {
+    std::atomic<bool> claimed{false};
+    std::atomic<bool> ready{false};
+    char path[4096];
+};
+TemporarySlot temporarySlots[16];
+
+// Tracks `path` while it exists; a no-op where no slot is free or the path does not fit.
+class TrackedTemporary {
+public:
+    explicit TrackedTemporary(const std::string& path) {
+        if (path.size() >= sizeof(TemporarySlot::path)) return;
+        for (TemporarySlot& slot : temporarySlots) {
+            bool expected = false;
+            if (!slot.claimed.compare_exchange_strong(expected, true)) continue;
+            std::memcpy(slot.path, path.c_str(), path.size() + 1);
+            slot.ready.store(true);
+            slot_ = &slot;
+            return;
+        }
+    }
+    ~TrackedTemporary() {
+        if (!slot_) return;
+        slot_->ready.store(false);
+        slot_->claimed.store(false);
+    }
+    TrackedTemporary(const TrackedTemporary&) = delete;
+    TrackedTemporary& operator=(const TrackedTemporary&) = delete;
+
+private:
+    TemporarySlot* slot_ = nullptr;
+};
+
 std::string temporaryPathFor(const std::string& path) {
     // pid + counter keeps concurrent writers (threads or processes) from sharing a file.
     static std::atomic<unsigned long> counter{0};
@@ -35,6 +70,7 @@ void syncFileToDisk(const std::string& name) {
 void writeAtomically(const std::string& path,
                      const std::function<void(const std::string& temporaryPath)>& write) {
     const std::string temporary = temporaryPathFor(path);
+    const TrackedTemporary tracked(temporary);
     try {
         write(temporary);
         syncFileToDisk(temporary);
@@ -57,6 +93,11 @@ void writeAtomically(const std::string& path,
         ::fsync(fd);
         ::close(fd);
     }
+}
+
+void removeTemporaryFilesNow() noexcept {
+    for (TemporarySlot& slot : temporarySlots)
+        if (slot.ready.load()) ::unlink(slot.path);
 }
 
 }  // namespace affinity

@@ -7,7 +7,10 @@ import hashlib
 import json
 import os
 import pathlib
+import shutil
+import signal
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -36,6 +39,88 @@ def denoise(*arguments: str) -> subprocess.CompletedProcess[str]:
 
 def checksums(folder: pathlib.Path) -> dict[str, str]:
     return {p.name: hashlib.sha256(p.read_bytes()).hexdigest() for p in sorted(folder.iterdir())}
+
+
+def large_sequence(source: pathlib.Path, folder: pathlib.Path, frames: int, tiles: int = 12) -> pathlib.Path:
+    """`frames` copies of `source`'s first frame tiled `tiles` x `tiles` times (432x288 from
+    36x24): a run long enough to be interrupted while it works."""
+    frame = affinity.read_frame(affinity.list_frame_files(source)[0])
+    frame["samples"] = np.ascontiguousarray(np.tile(frame["samples"], (tiles, tiles, 1, 1)))
+    frame["motion"] = np.ascontiguousarray(np.tile(frame["motion"], (tiles, tiles, 1)))
+    frame["valid"] = np.ascontiguousarray(np.tile(frame["valid"], (tiles, tiles)))
+    frame["reference"] = None
+    folder.mkdir()
+    affinity.write_frame(folder / "frame_0000.exr", frame, compression="none")
+    for i in range(1, frames):
+        os.link(folder / "frame_0000.exr", folder / affinity.frame_file_name(i))
+    return folder
+
+
+def test_outputs_follow_the_input_files(frames_dir: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """Issue 42, item 2: two shots holding frame numbers 0-2, copied into one folder as
+    frame_0000-0005, gave three outputs named by the stored numbers, the first shot's lost."""
+    both = tmp_path / "both"
+    both.mkdir()
+    inputs = affinity.list_frame_files(frames_dir)
+    for i, path in enumerate(inputs + inputs):
+        shutil.copy(path, both / affinity.frame_file_name(i))
+    done = denoise("--in", str(both), "--out", str(tmp_path / "out"))
+    assert done.returncode == 0, done.stderr
+    assert sorted(p.name for p in (tmp_path / "out").glob("denoised_*.exr")) == [
+        f"denoised_{i:04d}.exr" for i in range(6)]
+    summary = json.loads((tmp_path / "out" / "denoise_summary.json").read_text())
+    assert [(e["input"], e["output"], e["frame"]) for e in summary["per_frame"]] == [
+        (f"frame_{i:04d}.exr", f"denoised_{i:04d}.exr", i % 3) for i in range(6)]
+
+
+def test_a_refused_run_leaves_no_output_folder(frames_dir: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """Issue 42, item 6: the output folder was made before the model and frames were read."""
+    missing_model = denoise("--in", str(frames_dir), "--out", str(tmp_path / "a"), "--model", str(tmp_path / "no.affw"))
+    assert missing_model.returncode == 1 and "no.affw" in missing_model.stderr
+    assert not (tmp_path / "a").exists()
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    (broken / "frame_0000.exr").write_bytes((frames_dir / "frame_0000.exr").read_bytes()[:5000])
+    truncated = denoise("--in", str(broken), "--out", str(tmp_path / "b"))
+    assert truncated.returncode == 1 and "frame_0000.exr" in truncated.stderr
+    assert not (tmp_path / "b").exists()
+
+
+def test_an_output_folder_that_cannot_be_made_is_a_user_error(frames_dir: pathlib.Path, tmp_path: pathlib.Path) -> None:
+    """Issue 42, item 7: 'internal error: filesystem error ...', exit 3."""
+    (tmp_path / "a_file").write_text("not a folder")
+    out = tmp_path / "a_file" / "out"
+    done = denoise("--in", str(frames_dir), "--out", str(out))
+    assert done.returncode == 1, done.stderr
+    assert f"cannot create the output folder {out}" in done.stderr and "internal error" not in done.stderr
+
+
+@pytest.mark.parametrize("signals", [1, 2], ids=["ctrl-c", "ctrl-c-twice"])
+def test_ctrl_c_keeps_finished_frames_and_leaves_no_temporary_file(
+        frames_dir: pathlib.Path, tmp_path: pathlib.Path, signals: int) -> None:
+    """Issue 42, item 4: an interrupted run left *.tmp-PID-N files and no summary. The first
+    signal stops between a frame's steps and writes the summary of what was finished; a second
+    one ends the run at once, removing the file being written."""
+    source = large_sequence(frames_dir, tmp_path / "frames", 40)
+    out = tmp_path / "out"
+    run = subprocess.Popen([str(CLI), "denoise", "--in", str(source), "--out", str(out)],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while not (out / "denoised_0000.png").exists() and time.monotonic() < deadline and run.poll() is None:
+        time.sleep(0.005)
+    for _ in range(signals):
+        run.send_signal(signal.SIGINT)
+    _, stderr = run.communicate(timeout=120)
+    assert run.returncode == 130, stderr
+    assert not list(out.glob("*.tmp-*"))
+    finished = sorted(out.glob("denoised_*.exr"))
+    assert 0 < len(finished) < 40
+    if signals == 1:
+        summary = json.loads((out / "denoise_summary.json").read_text())
+        assert summary["interrupted"] is True and summary["input_frames"] == 40
+        assert [e["output"] for e in summary["per_frame"]] == [p.name for p in finished]
+        assert len(list(out.glob("denoised_*.png"))) == len(finished)
+        assert "interrupted after" in stderr
 
 
 def test_the_cli_denoises_as_the_python_denoiser_does(frames_dir: pathlib.Path, tmp_path: pathlib.Path) -> None:

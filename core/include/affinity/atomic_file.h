@@ -14,4 +14,9 @@ namespace affinity {
 void writeAtomically(const std::string& path,
                      const std::function<void(const std::string& temporaryPath)>& write);
 
+// Removes every temporary file a writeAtomically() call is writing at this moment, for a
+// signal handler about to end the process: async-signal-safe (unlink only). Files with paths
+// longer than 4 KiB, or more than 16 at once, are not tracked.
+void removeTemporaryFilesNow() noexcept;
+
 }  // namespace affinity
