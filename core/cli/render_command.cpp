@@ -4,6 +4,9 @@
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <string_view>
+#include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -40,6 +43,46 @@ ExrCompression parseCompression(const std::string& name) {
     throw Error("option --compression must be none, zip or piz, got '" + name + "'");
 }
 
+// Whether `name` is one of the names `render` gives a frame's files: frame_NNNN.exr,
+// noisy_NNNN.png, reference_NNNN.png, spelt exactly as it writes them (as listFrameFiles reads
+// frame files), so that a look-alike such as frame_1.exr or frame_0001.exr.bak is not one.
+bool isRenderedFrameFile(const std::string& name) {
+    static constexpr std::pair<std::string_view, std::string_view> kPatterns[] = {
+        {"frame_", ".exr"}, {"noisy_", ".png"}, {"reference_", ".png"}};
+    for (const auto& [prefix, suffix] : kPatterns) {
+        if (name.size() <= prefix.size() + suffix.size() || !name.starts_with(prefix) || !name.ends_with(suffix))
+            continue;
+        const std::string digits = name.substr(prefix.size(), name.size() - prefix.size() - suffix.size());
+        if (digits.size() < 4 || digits.size() > 7 || digits.find_first_not_of("0123456789") != std::string::npos)
+            continue;
+        char expected[64];
+        std::snprintf(expected, sizeof expected, "%.*s%04d%.*s", int(prefix.size()), prefix.data(),
+                      std::stoi(digits), int(suffix.size()), suffix.data());
+        if (name == expected) return true;
+    }
+    return false;
+}
+
+// --force: the earlier sequence in `out` goes as a whole before the new one is written, so that
+// the folder never holds frames of two runs (a shorter new run would otherwise leave the old
+// run's later frames after its own, and `denoise` would take them as one sequence; a new run
+// that fails part way would leave old frames after its last one). Only files `render` itself
+// writes are removed; anything else in the folder stays.
+void removeEarlierSequence(const fs::path& out) {
+    std::vector<fs::path> earlier;
+    for (const fs::directory_entry& entry : fs::directory_iterator(out)) {
+        const std::string name = entry.path().filename().string();
+        if (entry.is_directory()) continue;
+        if (isRenderedFrameFile(name) || name == "render_summary.json" || name == "scene.json")
+            earlier.push_back(entry.path());
+    }
+    for (const fs::path& path : earlier) {
+        std::error_code error;
+        if (!fs::remove(path, error) && error)
+            throw Error("cannot remove " + path.string() + " of the earlier sequence: " + error.message());
+    }
+}
+
 }  // namespace
 
 int renderCommand(const std::vector<std::string>& args) {
@@ -64,6 +107,7 @@ int renderCommand(const std::vector<std::string>& args) {
     if (fs::is_directory(out) && !listFrameFiles(out.string()).empty() && !a.flag("--force"))
         throw Error("output folder " + out.string() + " already holds frames; pass --force to overwrite them");
     fs::create_directories(out);
+    if (a.flag("--force")) removeEarlierSequence(out);
     writeText(out / "scene.json", render::sceneToJson(scene));
 
     render::SequenceRenderer renderer(scene, settings);

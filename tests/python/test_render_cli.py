@@ -114,3 +114,29 @@ def test_help_after_the_command_prints_its_usage(tmp_path: pathlib.Path, flag: s
     with_options = render(tmp_path / "seq", flag)
     assert with_options.returncode == 0 and with_options.stdout == result.stdout
     assert not (tmp_path / "seq").exists()
+
+
+def test_force_replaces_a_longer_sequence_entirely(tmp_path: pathlib.Path) -> None:
+    """--force over a longer sequence (issue 42, item 5): the folder holds exactly the new one,
+    so `denoise` cannot take the old frames as part of it; files `render` does not write stay."""
+    out = tmp_path / "seq"
+    assert render(out, "--frames", "4", "--previews").returncode == 0
+    others = {"notes.txt": "mine", "frame_1.exr": "x", "frame_0001.exr.bak": "x", "noisy_0002.jpg": "x",
+              "denoised_0003.exr": "x", "frame_0002.png": "x"}
+    for name, text in others.items():
+        (out / name).write_text(text)
+    (out / "frame_0007.exr").mkdir()  # a folder, not a frame file: left alone
+    result = render(out, "--frames", "2", "--force")  # no previews this time
+    assert result.returncode == 0, result.stderr
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(["frame_0000.exr", "frame_0001.exr", "scene.json", "render_summary.json",
+                            "frame_0007.exr", *others])
+    assert [pathlib.Path(f).name for f in affinity.list_frame_files(out)] == ["frame_0000.exr", "frame_0001.exr"]
+    assert json.loads((out / "render_summary.json").read_text())["frames"] == 2
+    for name, text in others.items():
+        assert (out / name).read_text() == text
+    # A later first frame: the earlier frames before it go too.
+    assert render(out, "--frames", "1", "--first-frame", "5", "--previews", "--force").returncode == 0
+    assert [pathlib.Path(f).name for f in affinity.list_frame_files(out)] == ["frame_0005.exr"]
+    assert sorted(p.name for p in out.glob("*.png")) == ["frame_0002.png", "noisy_0005.png", "reference_0005.png"]
+
