@@ -1,9 +1,15 @@
 // `affinity render`: renders a scene's frames into a sequence folder of per-sample EXR files,
 // with the scene description and a summary (timings, rays per second, noisy-input error).
+#include <unistd.h>
+
+#include <algorithm>
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <filesystem>
 #include <fstream>
+#include <new>
+#include <optional>
 #include <string_view>
 #include <utility>
 #include <vector>
@@ -17,6 +23,7 @@
 #include "affinity/metrics.h"
 #include "arguments.h"
 #include "commands.h"
+#include "output_folder.h"
 #include "progress_bar.h"
 #include "render/scene_file.h"
 #include "render/scene_library.h"
@@ -83,6 +90,70 @@ void removeEarlierSequence(const fs::path& out) {
     }
 }
 
+std::string formatBytes(double bytes) {
+    char text[32];
+    if (bytes >= double(1ull << 30)) std::snprintf(text, sizeof text, "%.1f GiB", bytes / double(1ull << 30));
+    else std::snprintf(text, sizeof text, "%.0f MiB", bytes / double(1ull << 20));
+    return text;
+}
+
+// The number after `key` in a "key value" file such as /proc/meminfo, if there is one.
+std::optional<double> readField(const char* path, const std::string& key) {
+    std::ifstream in(path);
+    for (std::string name; in >> name;) {
+        double value = 0.0;
+        if (name == key) return in >> value ? std::optional<double>(value) : std::nullopt;
+        in.ignore(1 << 12, '\n');
+    }
+    return std::nullopt;
+}
+
+// Memory a new allocation can still get, and where that figure comes from: MemAvailable, or a
+// container's cgroup v2 limit where that is lower (then the limit, not the host's memory, ends
+// the run), less what the cgroup uses other than page cache (reclaimed when needed). Where
+// /proc/meminfo cannot be read, the physical memory as the only bound known; nothing where that
+// is unknown too.
+std::optional<std::pair<double, std::string>> availableMemory() {
+    std::optional<std::pair<double, std::string>> available;
+    if (const auto kib = readField("/proc/meminfo", "MemAvailable:"))
+        available = {{*kib * 1024.0, "MemAvailable in /proc/meminfo"}};
+    std::ifstream limitFile("/sys/fs/cgroup/memory.max"), currentFile("/sys/fs/cgroup/memory.current");
+    double limit = 0.0, current = 0.0;
+    if (limitFile >> limit && currentFile >> current) {  // "max" (no limit) does not read as a number
+        const double cache = readField("/sys/fs/cgroup/memory.stat", "file").value_or(0.0);
+        const double left = std::max(0.0, limit - std::max(0.0, current - cache));
+        if (!available || left < available->first) available = {{left, "the cgroup's memory.max"}};
+    }
+    if (!available) {
+        const long pages = ::sysconf(_SC_PHYS_PAGES), pageSize = ::sysconf(_SC_PAGE_SIZE);
+        if (pages > 0 && pageSize > 0) available = {{double(pages) * double(pageSize), "the physical memory"}};
+    }
+    return available;
+}
+
+// A run holds one frame at a time (each is written before the next is rendered): its samples,
+// motion, validity and reference, the mean radiance and previews made from it, OpenEXR's buffers
+// while writing it, and the program with its scene. Refused before anything is written when
+// that is more than the machine has, rather than failing on an allocation part way.
+void checkMemory(const render::RenderSettings& settings, ExrCompression compression, bool previews) {
+    const double pixels = double(settings.width) * double(settings.height);
+    const bool withReference = settings.referenceSpp > 0;
+    const double frame = pixels * double(settings.spp * kFeatureCount + 3 + (withReference ? 3 : 0)) * sizeof(float);
+    const double writing = double(
+        frameWriteBufferBytes(settings.width, settings.height, settings.spp, withReference, compression));
+    // Mean radiance (3 floats); a preview's 8-bit pixels, PNG filter rows and encoding.
+    const double images = pixels * (3 * sizeof(float) + (previews ? 12.0 : 0.0));
+    constexpr double kProgramAndScene = 64.0 * (1 << 20);
+    const double needed = frame + writing + images + kProgramAndScene;
+    const auto available = availableMemory();
+    if (!available || needed <= available->first) return;
+    throw Error("rendering " + std::to_string(settings.width) + "x" + std::to_string(settings.height) + " at " +
+                std::to_string(settings.spp) + " spp needs about " + formatBytes(needed) + " of memory (" +
+                formatBytes(frame) + " for a frame, " + formatBytes(writing) + " to write it), but " +
+                formatBytes(available->first) + " is available (" + available->second +
+                "): use a smaller --size or --spp");
+}
+
 }  // namespace
 
 int renderCommand(const std::vector<std::string>& args) {
@@ -106,11 +177,25 @@ int renderCommand(const std::vector<std::string>& args) {
     if (fs::exists(out) && !fs::is_directory(out)) throw Error("output " + out.string() + " exists and is not a folder");
     if (fs::is_directory(out) && !listFrameFiles(out.string()).empty() && !a.flag("--force"))
         throw Error("output folder " + out.string() + " already holds frames; pass --force to overwrite them");
-    fs::create_directories(out);
-    if (a.flag("--force")) removeEarlierSequence(out);
-    writeText(out / "scene.json", render::sceneToJson(scene));
-
+    // Every check before anything is written: a refused run leaves the folder as it was.
     render::SequenceRenderer renderer(scene, settings);
+    checkMemory(settings, compression, a.flag("--previews"));
+
+    const OutputFolder folder(out);
+    if (a.flag("--force")) removeEarlierSequence(out);
+    // Until its first frame is written, a run that fails takes back its scene.json (and then
+    // `folder` the folder, if it made it), so that no folder is left describing frames it lacks.
+    bool wroteFrame = false;
+    struct SceneFileUntilFirstFrame {
+        fs::path path;
+        const bool& wroteFrame;
+        ~SceneFileUntilFirstFrame() {
+            std::error_code ignored;
+            if (!wroteFrame) fs::remove(path, ignored);
+        }
+    } sceneFile{out / "scene.json", wroteFrame};
+    writeText(sceneFile.path, render::sceneToJson(scene));
+
     nlohmann::json perFrame = nlohmann::json::array();
     double totalSeconds = 0.0;
     for (int i = 0; i < frames; ++i) {
@@ -118,12 +203,20 @@ int renderCommand(const std::vector<std::string>& args) {
         ProgressBar bar("frame " + std::to_string(i + 1) + "/" + std::to_string(frames));
         const auto start = std::chrono::steady_clock::now();
         const std::uint64_t raysBefore = renderer.raysCast();
-        SampleFrame frame = renderer.render(frameIndex, [&](double f) { bar.update(f); });
+        SampleFrame frame;
+        try {
+            frame = renderer.render(frameIndex, [&](double f) { bar.update(f); });
+        } catch (const std::bad_alloc&) {
+            // checkMemory() estimates; what else runs on the machine may still take the rest.
+            throw Error("out of memory rendering frame " + std::to_string(frameIndex) +
+                        ": use a smaller --size or --spp");
+        }
         const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
         const double rays = double(renderer.raysCast() - raysBefore);
         totalSeconds += seconds;
 
         writeFrame((out / frameFileName(frameIndex)).string(), frame, compression);
+        wroteFrame = true;
         nlohmann::json entry = {{"frame", frameIndex}, {"seconds", seconds}, {"rays_per_second", rays / seconds}};
         const std::vector<float> noisy = frame.meanRadiance();
         if (a.flag("--previews")) {

@@ -140,3 +140,32 @@ def test_force_replaces_a_longer_sequence_entirely(tmp_path: pathlib.Path) -> No
     assert [pathlib.Path(f).name for f in affinity.list_frame_files(out)] == ["frame_0005.exr"]
     assert sorted(p.name for p in out.glob("*.png")) == ["frame_0002.png", "noisy_0005.png", "reference_0005.png"]
 
+
+def test_a_run_needing_more_memory_than_the_machine_has_is_refused_before_writing(tmp_path: pathlib.Path) -> None:
+    """16384x16384 at 64 spp is within the options' limits but needs over a TiB (issue 42,
+    item 8): refused up front, naming what it needs and what there is, with nothing written."""
+    out = tmp_path / "huge"
+    result = render(out, "--size", "16384x16384", "--spp", "64", "--reference-spp", "0", "--frames", "1")
+    assert result.returncode == 1, result.stderr
+    assert "needs about" in result.stderr and "GiB of memory" in result.stderr
+    assert "is available" in result.stderr and "--size" in result.stderr
+    assert "internal error" not in result.stderr
+    assert not out.exists()
+    # An existing folder stays as it was.
+    out.mkdir()
+    (out / "notes.txt").write_text("mine")
+    result = render(out, "--size", "16384x16384", "--spp", "64", "--reference-spp", "0", "--frames", "1", "--force")
+    assert result.returncode == 1 and "needs about" in result.stderr
+    assert [p.name for p in out.iterdir()] == ["notes.txt"]
+
+
+def test_a_run_that_fails_before_its_first_frame_leaves_nothing_half_made(tmp_path: pathlib.Path) -> None:
+    """A failure after scene.json is written but before any frame is (here: frame_0000.exr is
+    a folder, so the frame cannot be written) takes scene.json back: no folder describing
+    frames it does not hold."""
+    out = tmp_path / "seq"
+    (out / "frame_0000.exr").mkdir(parents=True)
+    result = render(out)
+    assert result.returncode == 1, result.stderr
+    assert "frame_0000.exr" in result.stderr
+    assert [p.name for p in out.iterdir()] == ["frame_0000.exr"]

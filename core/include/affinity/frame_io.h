@@ -3,6 +3,7 @@
 // motion / validity / reference and the metadata. The channel naming scheme is documented in
 // docs/FRAME_FILES.md. Writes are atomic; reads reject anything incomplete with an
 // affinity::Error naming the file and the problem.
+#include <cstddef>
 #include <functional>
 #include <string>
 #include <vector>
@@ -22,6 +23,10 @@ SampleFrame readFrame(const std::string& path);
 // reader that hands them on (Denoiser::sampleBands), so that they are never held twice.
 using SampleBandsFor = std::function<std::vector<SampleBand>(int width, int height, int spp)>;
 SampleFrame readFrame(const std::string& path, const SampleBandsFor& bandsFor);
+// About how many bytes writeFrame() holds besides the frame itself while it writes a frame of
+// this size (OpenEXR's line buffers and compressors): for checking a run's memory before it
+// starts. Measured to within 10 % (a little above) with OpenEXR 3.1.
+std::size_t frameWriteBufferBytes(int width, int height, int spp, bool withReference, ExrCompression compression);
 
 // "frame_0007.exr" for index 7: the name every sequence folder uses.
 std::string frameFileName(int frameIndex);
