@@ -6,7 +6,7 @@ target_compile_options(affinity_options INTERFACE
   # (clang has no such warning and rejects the flag).
   $<$<CXX_COMPILER_ID:GNU>:-Wno-restrict>
   -march=${AFFINITY_ARCH}
-  # Without these the float loops do not vectorise (FACTS.md); we never rely on errno or traps.
+  # Without these the float loops do not vectorise (docs/METHOD.md section 12); we never rely on errno or traps.
   -fno-math-errno -fno-trapping-math)
 if(AFFINITY_WERROR)
   target_compile_options(affinity_options INTERFACE -Werror)

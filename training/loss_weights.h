@@ -8,7 +8,7 @@ inline constexpr double kTemporalWeight = 0.25;
 
 // Weights of the loss terms; the defaults are the paper's loss. The absolute temporal term is
 //   mean |dt O - dt O*| / (mean |O*| + 0.01)   (means per crop, over pixels and channels)
-// the benchmark's temporal error (ALGORITHM.md section 10) per unit of the crop's brightness.
+// the benchmark's temporal error (docs/METHOD.md section 10) per unit of the crop's brightness.
 // SMAPE of dt O weighs a flickering lamp like a flickering shadow; the benchmark, and the eye in a
 // tone-mapped frame, weigh flicker by its size, so this term lets bright pixels count as much.
 // With warpedTemporal, dt O is O_t - W O_{t-1} (W: the previous frame warped by frame t's motion,

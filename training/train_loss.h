@@ -1,5 +1,5 @@
 #pragma once
-// The training loss of ALGORITHM.md section 7 over one sequence of frames:
+// The training loss of docs/METHOD.md section 7 over one sequence of frames:
 //   Loss = SMAPE(O, O*) + 0.25 SMAPE(dt O, dt O*) + 1e-5 (sum_k E[(a^k)^2] + E[b^2])
 //   SMAPE(A, B) = mean over pixels and channels of |A - B| / (|A| + |B| + 0.01)
 // where dt is the difference between consecutive frames. Optional terms (LossWeights: absolute

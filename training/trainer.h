@@ -1,5 +1,5 @@
 #pragma once
-// End-to-end training of the denoising network (ALGORITHM.md section 7) on per-sample frame
+// End-to-end training of the denoising network (docs/METHOD.md section 7) on per-sample frame
 // sequences as the renderer writes them (one folder per sequence, frame_NNNN.exr with a
 // reference). Torch-free interface: the CLI (train_main.cpp) and the tests call runTraining.
 #include <cstdint>

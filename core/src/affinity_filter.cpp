@@ -29,7 +29,7 @@ Vec8f load8(const float* p) {
 // Planar, zero-padded copies of image rows. The inputs are NHWC (a pixel's channels adjacent);
 // the kernels want each channel's row contiguous so that eight neighbouring pixels are one
 // vector load (indexing NHWC per channel makes the compiler gather: 100 ms against 22 ms per
-// pass in shared/design/FACTS.md). Each row
+// pass, docs/METHOD.md section 12). Each row
 // is transposed once per thread into a ring of slots covering the rows a kernel reaches.
 class PlanarRows {
 public:

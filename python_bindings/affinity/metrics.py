@@ -1,4 +1,4 @@
-"""Error metrics of the evaluation (ALGORITHM.md section 10), one definition each.
+"""Error metrics of the evaluation (docs/METHOD.md section 10), one definition each.
 
 Images are linear RGB float arrays of shape (H, W, 3) (any float dtype; converted to float32).
 SMAPE, relMSE, PSNR, the temporal error and the warping error are the C++ functions of core (affinity/metrics.h),

@@ -1,7 +1,7 @@
 #pragma once
 // SVGF, Schied et al. 2017, "Spatiotemporal Variance-Guided Filtering: Real-Time
 // Reconstruction for Path-Traced Global Illumination": the hand-designed real-time baseline
-// our denoiser is compared with (ALGORITHM.md section 9). Stateful like affinity::Denoiser:
+// our denoiser is compared with (docs/METHOD.md section 9). Stateful like affinity::Denoiser:
 // feed a sequence's frames in order; reset() forgets the history, as at a camera cut.
 //
 // Per frame: the noisy radiance (mean of the samples' diffuse + specular) is demodulated by

@@ -20,7 +20,7 @@ import affinity
 
 Runner = Callable[[dict[str, Any]], np.ndarray]
 
-#: The ablations of affinity.Denoiser (ALGORITHM.md section 9).
+#: The ablations of affinity.Denoiser (docs/METHOD.md section 9).
 ABLATIONS = affinity.Denoiser.ABLATIONS
 #: The built-in model, where a model path is expected.
 BUILT_IN = "builtin"
