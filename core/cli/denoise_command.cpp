@@ -110,7 +110,8 @@ int denoiseCommand(const std::vector<std::string>& args) {
                                     {"interrupted", interrupted},
                                     {"milliseconds_per_frame", done > 0 ? totalSeconds * 1e3 / double(done) : 0.0},
                                     {"per_frame", perFrame}};
-    writeAtomically((out / "denoise_summary.json").string(), [&](const std::string& temporary) {
+    // A run stopped before its first frame leaves nothing (`folder` goes if this run made it).
+    if (done > 0) writeAtomically((out / "denoise_summary.json").string(), [&](const std::string& temporary) {
         std::ofstream file(temporary);
         file << summary.dump(2) << "\n";
         if (!file) throw Error("cannot write " + (out / "denoise_summary.json").string());

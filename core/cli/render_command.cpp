@@ -23,6 +23,7 @@
 #include "affinity/metrics.h"
 #include "arguments.h"
 #include "commands.h"
+#include "interrupt.h"
 #include "output_folder.h"
 #include "progress_bar.h"
 #include "render/scene_file.h"
@@ -196,16 +197,19 @@ int renderCommand(const std::vector<std::string>& args) {
     } sceneFile{out / "scene.json", wroteFrame};
     writeText(sceneFile.path, render::sceneToJson(scene));
 
+    installInterruptHandlers();
     nlohmann::json perFrame = nlohmann::json::array();
     double totalSeconds = 0.0;
-    for (int i = 0; i < frames; ++i) {
+    for (int i = 0; i < frames && !interruptRequested(); ++i) {
         const int frameIndex = firstFrame + i;
         ProgressBar bar("frame " + std::to_string(i + 1) + "/" + std::to_string(frames));
         const auto start = std::chrono::steady_clock::now();
         const std::uint64_t raysBefore = renderer.raysCast();
         SampleFrame frame;
         try {
-            frame = renderer.render(frameIndex, [&](double f) { bar.update(f); });
+            frame = renderer.render(frameIndex, [&](double f) { bar.update(f); }, interruptRequested);
+        } catch (const Interrupted&) {
+            break;
         } catch (const std::bad_alloc&) {
             // checkMemory() estimates; what else runs on the machine may still take the rest.
             throw Error("out of memory rendering frame " + std::to_string(frameIndex) +
@@ -237,17 +241,25 @@ int renderCommand(const std::vector<std::string>& args) {
         perFrame.push_back(entry);
         bar.finish(std::to_string(int(rays / seconds / 1e6)) + " Mrays/s");
     }
+    const int done = int(perFrame.size());
     const nlohmann::json summary = {{"scene", scene.name},
                                     {"size", {settings.width, settings.height}},
-                                    {"frames", frames},
+                                    {"frames", done},
+                                    {"requested_frames", frames},
+                                    {"interrupted", done < frames},
                                     {"spp", settings.spp},
                                     {"reference_spp", settings.referenceSpp},
                                     {"seed", settings.seed},
                                     {"feature_convention", render::featureConventionName(settings.featureConvention)},
                                     {"seconds", totalSeconds},
-                                    {"rays_per_second", double(renderer.raysCast()) / totalSeconds},
+                                    {"rays_per_second", totalSeconds > 0 ? double(renderer.raysCast()) / totalSeconds : 0.0},
                                     {"per_frame", perFrame}};
-    writeText(out / "render_summary.json", summary.dump(2) + "\n");
+    if (done > 0) writeText(out / "render_summary.json", summary.dump(2) + "\n");
+    if (done < frames) {
+        std::fprintf(stderr, "\naffinity render: interrupted after %d of %d frames; those are kept in %s\n", done,
+                     frames, out.string().c_str());
+        return interruptedExitStatus();
+    }
     std::printf("%s: %d frames of %dx%d at %d spp (reference %d spp) in %.1f s, %.1f Mrays/s -> %s\n",
                 scene.name.c_str(), frames, settings.width, settings.height, settings.spp, settings.referenceSpp,
                 totalSeconds, double(renderer.raysCast()) / totalSeconds / 1e6, out.string().c_str());

@@ -38,7 +38,8 @@ SequenceRenderer::SequenceRenderer(const Scene& scene, const RenderSettings& set
 
 SequenceRenderer::~SequenceRenderer() = default;
 
-SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& progress) {
+SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& progress,
+                                     const std::function<bool()>& stop) {
     const int width = settings_.width, height = settings_.height;
     auto current = std::make_unique<EmbreeScene>(scene_, float(frameIndex));
     const LightSampler lights(*current);
@@ -59,6 +60,7 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
     computeMotion(frameIndex, *current, frame);
 
     std::atomic<int> rowsDone{0};
+    std::atomic<bool> stopped{false};
     std::uint64_t rays = 0;
 #pragma omp parallel reduction(+ : rays)
     {
@@ -66,6 +68,9 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
         float scratch[kFeatureCount];
 #pragma omp for schedule(dynamic, 1)
         for (int y = 0; y < height; ++y) {
+            // An exception cannot leave the parallel loop: the remaining rows are skipped.
+            if (stop && omp_get_thread_num() == 0 && stop()) stopped = true;
+            if (stopped) continue;
             for (int x = 0; x < width; ++x) {
                 const std::size_t pixel = frame.pixelIndex(x, y);
                 for (int s = 0; s < settings_.spp; ++s) {
@@ -93,8 +98,9 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
             if (progress && omp_get_thread_num() == 0) progress(double(done) / double(height));
         }
     }
-    if (progress) progress(1.0);
     raysCast_ += rays;
+    if (stopped) throw Interrupted("render: interrupted in frame " + std::to_string(frameIndex));
+    if (progress) progress(1.0);
 
     previous_ = std::move(current);
     previousIndex_ = frameIndex;

@@ -33,8 +33,11 @@ public:
     ~SequenceRenderer();
 
     // Frames must be rendered in increasing order; frame t has valid history only when frame
-    // t - 1 was the previous frame rendered by this renderer.
-    SampleFrame render(int frameIndex, const ProgressCallback& progress = {});
+    // t - 1 was the previous frame rendered by this renderer. `stop`, asked before each row on
+    // one thread, abandons the frame when it returns true: render() then throws
+    // affinity::Interrupted (for Ctrl-C; a frame can take minutes).
+    SampleFrame render(int frameIndex, const ProgressCallback& progress = {},
+                       const std::function<bool()>& stop = {});
 
     // Rays cast so far (camera, bounce and shadow rays), for throughput figures.
     std::uint64_t raysCast() const { return raysCast_; }

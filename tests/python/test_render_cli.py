@@ -6,7 +6,9 @@ from __future__ import annotations
 import json
 import os
 import pathlib
+import signal
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -169,3 +171,38 @@ def test_a_run_that_fails_before_its_first_frame_leaves_nothing_half_made(tmp_pa
     assert result.returncode == 1, result.stderr
     assert "frame_0000.exr" in result.stderr
     assert [p.name for p in out.iterdir()] == ["frame_0000.exr"]
+
+
+def _interrupt_render(tmp_path: pathlib.Path, wait_for: str) -> tuple[subprocess.Popen, str, pathlib.Path]:
+    """A long render, sent Ctrl-C once `wait_for` (a file in its folder) exists."""
+    out = tmp_path / "out"
+    run = subprocess.Popen([str(CLI), "render", "--scene", "disocclusion", "--frames", "50", "--spp", "4",
+                            "--size", "320x240", "--reference-spp", "64", "--out", str(out)],
+                           stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 300
+    while not (out / wait_for).exists() and time.monotonic() < deadline and run.poll() is None:
+        time.sleep(0.005)
+    run.send_signal(signal.SIGINT)
+    _, stderr = run.communicate(timeout=300)
+    return run, stderr, out
+
+
+def test_ctrl_c_keeps_finished_frames_and_writes_their_summary(tmp_path: pathlib.Path) -> None:
+    """Issue 42, item 4: an interrupted render left *.tmp-PID-N files and no summary."""
+    run, stderr, out = _interrupt_render(tmp_path, "frame_0000.exr")
+    assert run.returncode == 130, stderr
+    assert not list(out.glob("*.tmp-*"))
+    frames = affinity.list_frame_files(out)
+    assert 0 < len(frames) < 50
+    summary = json.loads((out / "render_summary.json").read_text())
+    assert summary["interrupted"] is True and summary["requested_frames"] == 50
+    assert summary["frames"] == len(summary["per_frame"]) == len(frames)
+    for path in frames:  # every frame kept is whole
+        assert affinity.read_frame(path)["samples"].shape == (240, 320, 4, affinity.FEATURE_COUNT)
+    assert "interrupted after" in stderr
+
+
+def test_ctrl_c_before_the_first_frame_leaves_nothing(tmp_path: pathlib.Path) -> None:
+    run, stderr, out = _interrupt_render(tmp_path, "scene.json")
+    assert run.returncode == 130, stderr
+    assert not out.exists()
