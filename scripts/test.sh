@@ -26,19 +26,23 @@ cmake --build build-sanitize -j "$jobs"
 ASAN_OPTIONS=detect_leaks=1 UBSAN_OPTIONS=print_stacktrace=1 \
   ctest --test-dir build-sanitize --output-on-failure -j "$jobs"
 
-echo "== Fuzzing the weights and frame readers (libFuzzer + ASan + UBSan, clang)"
+echo "== Fuzzing the weights, frame and scene-file readers (libFuzzer + ASan + UBSan, clang)"
 fuzz_seconds=${AFFINITY_FUZZ_SECONDS:-60}
 CC=clang CXX=clang++ cmake -S . -B build-fuzz -G Ninja -DAFFINITY_FUZZ=ON -DAFFINITY_BUILD_PYTHON=OFF \
   -DAFFINITY_BUILD_TESTS=OFF -DAFFINITY_BUILD_BENCH=OFF >/dev/null
-cmake --build build-fuzz -j "$jobs" --target fuzz_weights fuzz_frame_reader make_fuzz_seeds
+cmake --build build-fuzz -j "$jobs" --target fuzz_weights fuzz_frame_reader fuzz_scene_file make_fuzz_seeds
 # Seeds are regenerated every run; what the fuzzers add to the corpus is kept between runs.
 build-fuzz/tests/fuzz/make_fuzz_seeds build-fuzz/corpus/weights build-fuzz/corpus/frames
-mkdir -p build-fuzz/findings
-for fuzzer in weights:fuzz_weights frames:fuzz_frame_reader; do
+# The scene files' seeds are the bundled scenes (every section and key of the format).
+mkdir -p build-fuzz/corpus/scenes build-fuzz/findings
+cp samples/scenes/*.json build-fuzz/corpus/scenes/
+for fuzzer in weights:fuzz_weights frames:fuzz_frame_reader scenes:fuzz_scene_file; do
   corpus=${fuzzer%%:*} target=${fuzzer#*:}
   log=build-fuzz/$target.log
+  dictionary=()
+  [ "$target" = fuzz_scene_file ] && dictionary=(-dict=tests/fuzz/scene_file.dict)
   if ! build-fuzz/tests/fuzz/$target -max_total_time="$fuzz_seconds" -timeout=10 -print_final_stats=1 \
-      -artifact_prefix=build-fuzz/findings/ "build-fuzz/corpus/$corpus" >"$log" 2>&1; then
+      "${dictionary[@]}" -artifact_prefix=build-fuzz/findings/ "build-fuzz/corpus/$corpus" >"$log" 2>&1; then
     tail -n 80 "$log"
     echo "FAIL: $target found a crash, leak, timeout or undefined behaviour; the input is in build-fuzz/findings/" >&2
     exit 1

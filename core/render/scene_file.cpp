@@ -170,7 +170,7 @@ Scene parseScene(const std::string& text, const std::string& sourceName) {
     Json root;
     try {
         root = Json::parse(text);
-    } catch (const Json::parse_error& e) {
+    } catch (const Json::exception& e) {  // parse_error, and out_of_range for numbers beyond a double
         r.fail("JSON", e.what());
     }
     r.onlyKeys(root, {"name", "camera", "environment", "textures", "materials", "objects"}, "top level");

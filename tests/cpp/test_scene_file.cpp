@@ -219,3 +219,21 @@ TEST(SceneFile, CoincidingCameraPositionAndTargetNameTheFileAndTheKey) {
     EXPECT_TRUE(refusedWith(sceneWith(grey, R"({"up": [0, 1, 0], "position": [0, 5, 0], "target": 0})"),
                             {"test.json", "camera.up", "view direction"}));
 }
+
+TEST(SceneFile, NumbersBeyondADoubleAreAnErrorNamingTheFile) {
+    // The JSON parser throws out_of_range, not parse_error, for these (found by fuzz_scene_file):
+    // they escaped as an internal error.
+    for (const char* number : {"1e999", "-1e395"}) {
+        const std::string json = sceneWith(R"({"grey": {"type": "diffuse"}})",
+                                           std::string(R"({"fov": )") + number + R"(, "position": 1, "target": 0})");
+        try {
+            parseScene(json, "test.json");
+            ADD_FAILURE() << number << " accepted";
+        } catch (const Error& e) {
+            EXPECT_NE(std::string(e.what()).find("scene test.json: JSON: "), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find(number), std::string::npos) << e.what();
+        } catch (const std::exception& e) {
+            ADD_FAILURE() << number << ": not an affinity::Error: " << e.what();
+        }
+    }
+}
