@@ -64,8 +64,8 @@ bool isRenderedFrameFile(const std::string& name) {
         if (digits.size() < 4 || digits.size() > 7 || digits.find_first_not_of("0123456789") != std::string::npos)
             continue;
         char expected[64];
-        std::snprintf(expected, sizeof expected, "%.*s%04d%.*s", int(prefix.size()), prefix.data(),
-                      std::stoi(digits), int(suffix.size()), suffix.data());
+        std::snprintf(expected, sizeof expected, "%.*s%04d%.*s", int(prefix.size()), prefix.data(), std::stoi(digits),
+                      int(suffix.size()), suffix.data());
         if (name == expected) return true;
     }
     return false;
@@ -93,8 +93,10 @@ void removeEarlierSequence(const fs::path& out) {
 
 std::string formatBytes(double bytes) {
     char text[32];
-    if (bytes >= double(1ull << 30)) std::snprintf(text, sizeof text, "%.1f GiB", bytes / double(1ull << 30));
-    else std::snprintf(text, sizeof text, "%.0f MiB", bytes / double(1ull << 20));
+    if (bytes >= double(1ull << 30))
+        std::snprintf(text, sizeof text, "%.1f GiB", bytes / double(1ull << 30));
+    else
+        std::snprintf(text, sizeof text, "%.0f MiB", bytes / double(1ull << 20));
     return text;
 }
 
@@ -140,8 +142,8 @@ void checkMemory(const render::RenderSettings& settings, ExrCompression compress
     const double pixels = double(settings.width) * double(settings.height);
     const bool withReference = settings.referenceSpp > 0;
     const double frame = pixels * double(settings.spp * kFeatureCount + 3 + (withReference ? 3 : 0)) * sizeof(float);
-    const double writing = double(
-        frameWriteBufferBytes(settings.width, settings.height, settings.spp, withReference, compression));
+    const double writing =
+        double(frameWriteBufferBytes(settings.width, settings.height, settings.spp, withReference, compression));
     // Mean radiance (3 floats); a preview's 8-bit pixels, PNG filter rows and encoding.
     const double images = pixels * (3 * sizeof(float) + (previews ? 12.0 : 0.0));
     constexpr double kProgramAndScene = 64.0 * (1 << 20);
