@@ -157,28 +157,16 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     for (int k = 0; k < K; ++k) {
         const std::int64_t base = std::int64_t(k) * config_.kernelChannels();
         result.kernels.push_back({result.head.narrow(1, base, F), result.head.narrow(1, base + F, 1),
-                                  torch::sigmoid(result.head.narrow(1, base + F + 1, 1)),
-                                  config_.sourceWeights ? torch::sigmoid(result.head.narrow(1, base + F + 2, 1))
-                                                        : torch::Tensor()});
+                                  torch::sigmoid(result.head.narrow(1, base + F + 1, 1))});
     }
     const std::int64_t tail = std::int64_t(K) * config_.kernelChannels();
     result.temporalBandwidth = result.head.narrow(1, tail, 1);
     result.lambda = torch::sigmoid(result.head.narrow(1, tail + 1, 1));
 
-    // Section 3 (continued): the learned moving averages; with an emission lambda the bypassed
-    // emission (the signal's last 3 channels) has its own.
+    // Section 3 (continued): the learned moving averages.
     const torch::Tensor& lambda = result.lambda;
     const torch::Tensor accumulatedEmbedding = (1 - lambda) * result.embedding + lambda * historyEmbedding;
-    if (config_.emissionLambda) {
-        const torch::Tensor emissionLambda = torch::sigmoid(result.head.narrow(1, tail + 2, 1));
-        const std::int64_t rest = current.size(1) - 3;
-        result.accumulated =
-            torch::cat({(1 - lambda) * current.narrow(1, 0, rest) + lambda * historySignal.narrow(1, 0, rest),
-                        (1 - emissionLambda) * current.narrow(1, rest, 3) + emissionLambda * historySignal.narrow(1, rest, 3)},
-                       1);
-    } else {
-        result.accumulated = (1 - lambda) * current + lambda * historySignal;
-    }
+    result.accumulated = (1 - lambda) * current + lambda * historySignal;
 
     // Section 6: dilated kernels 0..K-2; section 7: the last one, with temporal taps.
     const std::int64_t C = config_.signalChannels();

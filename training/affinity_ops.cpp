@@ -39,9 +39,8 @@ WeightedSum spatialSum(const at::Tensor& radiance, const KernelParams& kernel, i
     const std::vector<std::int64_t> padding{pad, pad, pad, pad};
     const at::Tensor paddedRadiance = at::constant_pad_nd(radiance, padding, 0);
     const at::Tensor paddedFeatures = at::constant_pad_nd(kernel.features, padding, 0);
-    // Out-of-image taps weigh 0; with source weights, in-image taps weigh s(q).
-    const at::Tensor inside =
-        at::constant_pad_nd(kernel.source.defined() ? kernel.source : at::ones_like(kernel.bandwidth), padding, 0);
+    // Out-of-image taps weigh 0.
+    const at::Tensor inside = at::constant_pad_nd(at::ones_like(kernel.bandwidth), padding, 0);
     const at::Tensor negativeA2 = -(kernel.bandwidth * kernel.bandwidth);
 
     WeightedSum sum{kernel.centre * radiance, kernel.centre};

@@ -71,13 +71,11 @@ at::Tensor maxPool2x2(const at::Tensor& input);
 at::Tensor upsampleNearest(const at::Tensor& input, std::int64_t height, std::int64_t width);
 
 // Per-pixel parameters of one affinity kernel (section 5): features [B, F, H, W], bandwidth a
-// [B, 1, H, W], centre weight c [B, 1, H, W] and source weight s [B, 1, H, W] (both already
-// through their sigmoid; s undefined in models without source weights: 1 everywhere).
+// [B, 1, H, W] and centre weight c [B, 1, H, W] (already through its sigmoid).
 struct KernelParams {
     at::Tensor features;
     at::Tensor bandwidth;
     at::Tensor centre;
-    at::Tensor source;
 };
 
 // The taps on the previous frame for the last kernel (section 7), all already warped:

@@ -75,7 +75,6 @@ struct Element {
     const T* features;        // F planes
     const T* bandwidth;       // 1 plane
     const T* centre;          // 1 plane
-    const T* source;          // 1 plane or null
     const T* tBandwidth;      // 1 plane or null (no temporal taps)
     const T* warpedOutput;    // C planes
     const T* warpedFeatures;  // F planes
@@ -137,7 +136,8 @@ void forwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& sp
     for (int x = 0; x < s.width; ++x) D[x] = in.centre[row + x];
     for (int c = 0; c < s.channels; ++c)
         for (int x = 0; x < s.width; ++x) out[c * plane + row + x] = in.centre[row + x] * in.radiance[c * plane + row + x];
-    // Adds the taps of (values, their features, their validity or source weight) at one offset.
+    // Adds the taps of (values, their features, their validity: null for the spatial taps) at one
+    // offset.
     auto addTap = [&](const Tap& tap, const T* values, const T* tapFeatures, const T* tapWeight, const T* bandwidth) {
         const TapSpan sp = span(tap, y, s.height, s.width);
         if (!sp.inside) return;
@@ -154,7 +154,7 @@ void forwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& sp
             for (int k = 0; k < n; ++k) o[k] += e[k] * v[k];
         }
     };
-    for (const Tap& tap : spatial) addTap(tap, in.radiance, in.features, in.source, in.bandwidth);
+    for (const Tap& tap : spatial) addTap(tap, in.radiance, in.features, nullptr, in.bandwidth);
     if (in.tBandwidth)
         for (const Tap& tap : temporalTaps()) addTap(tap, in.warpedOutput, in.warpedFeatures, in.warpedValid, in.tBandwidth);
     for (int x = 0; x < s.width; ++x) D[x] += T(kAffinityEpsilon);
@@ -169,7 +169,6 @@ struct Gradients {
     T* features;
     T* bandwidth;
     T* centre;
-    T* source;
     T* tBandwidth;
     T* warpedOutput;
     T* warpedFeatures;
@@ -177,8 +176,8 @@ struct Gradients {
 
 // Backward of row y, every gradient written at this row's own pixels only, so rows run in
 // parallel: a pixel's gradients as the filtered pixel p (its centre weight, bandwidths, own
-// features), and as a tap q of the pixels p' = q - offset (its radiance or warped output, source
-// weight and features), the affinity recomputed for each pair. With gN = dL/dout / Z and
+// features), and as a tap q of the pixels p' = q - offset (its radiance or warped output and
+// features), the affinity recomputed for each pair. With gN = dL/dout / Z and
 // gD = -sum_c gN_c out_c (Z the denominator), a tap's weight W gets G = gD + sum_c gN_c v_c(q).
 template <typename T>
 void backwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& spatial, const T* gN, const T* gD,
@@ -222,7 +221,7 @@ void backwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& s
     };
     // This row as the taps q of the filtered pixels p = q - offset.
     auto asTap = [&](const Tap& tap, const T* values, const T* tapFeatures, const T* tapWeight, const T* bandwidth,
-                     T* valueGradient, T* featureGradient, T* weightGradient) {
+                     T* valueGradient, T* featureGradient) {
         const TapSpan sp = span({-tap.dy, -tap.dx}, y, s.height, s.width);
         if (!sp.inside) return;
         const int n = sp.x1 - sp.x0;
@@ -233,7 +232,6 @@ void backwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& s
             for (int k = 0; k < n; ++k)
                 valueGradient[c * plane + q + k] += e[k] * (tapWeight ? tapWeight[q + k] : T(1)) * gN[c * plane + p + k];
         for (int k = 0; k < n; ++k) {
-            if (weightGradient) weightGradient[q + k] += g[k] * e[k];
             const T a = bandwidth[p + k];
             g[k] *= e[k] * (tapWeight ? tapWeight[q + k] : T(1)) * T(-2) * a * a;  // times (f(q) - f(p))
         }
@@ -243,14 +241,14 @@ void backwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& s
                     g[k] * (tapFeatures[ch * plane + q + k] - in.features[ch * plane + p + k]);
     };
     for (const Tap& tap : spatial) {
-        asFiltered(tap, in.radiance, in.features, in.source, in.bandwidth, grad.bandwidth);
-        asTap(tap, in.radiance, in.features, in.source, in.bandwidth, grad.radiance, grad.features, grad.source);
+        asFiltered(tap, in.radiance, in.features, nullptr, in.bandwidth, grad.bandwidth);
+        asTap(tap, in.radiance, in.features, nullptr, in.bandwidth, grad.radiance, grad.features);
     }
     if (in.tBandwidth) {
         for (const Tap& tap : temporalTaps()) {
             asFiltered(tap, in.warpedOutput, in.warpedFeatures, in.warpedValid, in.tBandwidth, grad.tBandwidth);
             asTap(tap, in.warpedOutput, in.warpedFeatures, in.warpedValid, in.tBandwidth, grad.warpedOutput,
-                  grad.warpedFeatures, nullptr);
+                  grad.warpedFeatures);
         }
     }
 }
@@ -263,8 +261,7 @@ Shape shapeOf(const at::Tensor& radiance, const at::Tensor& features) {
 template <typename T>
 Element<T> elementAt(const tensor_list& t, int b) {
     return {elementOf<T>(t[0], b), elementOf<T>(t[1], b), elementOf<T>(t[2], b), elementOf<T>(t[3], b),
-            elementOf<T>(t[4], b), elementOf<T>(t[5], b), elementOf<T>(t[6], b), elementOf<T>(t[7], b),
-            elementOf<T>(t[8], b)};
+            elementOf<T>(t[4], b), elementOf<T>(t[5], b), elementOf<T>(t[6], b), elementOf<T>(t[7], b)};
 }
 
 // Rows of all batch elements in parallel, each thread with its own scratch.
@@ -277,17 +274,16 @@ void forEachRow(const Shape& s, RowFunction&& rowFunction) {
 }
 
 struct FusedAffinityFilter : public torch::autograd::Function<FusedAffinityFilter> {
-    // inputs: radiance, features, bandwidth, centre, source, temporal bandwidth, warped output,
-    // warped features, warped validity (the last five may be undefined).
+    // inputs: radiance, features, bandwidth, centre, temporal bandwidth, warped output, warped
+    // features, warped validity (the last four empty without temporal taps).
     static at::Tensor forward(AutogradContext* ctx, const at::Tensor& radiance, const at::Tensor& features,
-                              const at::Tensor& bandwidth, const at::Tensor& centre, const at::Tensor& source,
-                              const at::Tensor& tBandwidth, const at::Tensor& warpedOutput,
-                              const at::Tensor& warpedFeatures, const at::Tensor& warpedValid, std::int64_t tapSize,
-                              std::int64_t dilation) {
+                              const at::Tensor& bandwidth, const at::Tensor& centre, const at::Tensor& tBandwidth,
+                              const at::Tensor& warpedOutput, const at::Tensor& warpedFeatures,
+                              const at::Tensor& warpedValid, std::int64_t tapSize, std::int64_t dilation) {
         auto contiguous = [](const at::Tensor& t) { return t.defined() ? t.contiguous() : t; };
-        const tensor_list in{contiguous(radiance),     contiguous(features),       contiguous(bandwidth),
-                             contiguous(centre),       contiguous(source),         contiguous(tBandwidth),
-                             contiguous(warpedOutput), contiguous(warpedFeatures), contiguous(warpedValid)};
+        const tensor_list in{contiguous(radiance),       contiguous(features),   contiguous(bandwidth),
+                             contiguous(centre),         contiguous(tBandwidth), contiguous(warpedOutput),
+                             contiguous(warpedFeatures), contiguous(warpedValid)};
         const Shape s = shapeOf(in[0], in[1]);
         at::Tensor out = at::empty_like(in[0]);
         at::Tensor denominator = at::empty_like(in[3]);
@@ -309,23 +305,24 @@ struct FusedAffinityFilter : public torch::autograd::Function<FusedAffinityFilte
 
     static tensor_list backward(AutogradContext* ctx, tensor_list outputGradients) {
         const tensor_list saved = ctx->get_saved_variables();
-        const tensor_list in(saved.begin(), saved.begin() + 9);
-        const at::Tensor& out = saved[9];
-        const at::Tensor& denominator = saved[10];
+        const tensor_list in(saved.begin(), saved.begin() + 8);
+        const at::Tensor& out = saved[8];
+        const at::Tensor& denominator = saved[9];
         const at::Tensor gN = (outputGradients[0] / denominator).contiguous();
         const at::Tensor gD = (-(gN * out).sum(1, true)).contiguous();
         const Shape s = shapeOf(in[0], in[1]);
         auto zerosLike = [](const at::Tensor& t) { return present(t) ? at::zeros_like(t) : at::Tensor(); };
         tensor_list grads{at::empty_like(in[0]), zerosLike(in[1]), zerosLike(in[2]), at::empty_like(in[3]),
-                          zerosLike(in[4]),      zerosLike(in[5]), zerosLike(in[6]), zerosLike(in[7])};
+                          zerosLike(in[4]),      zerosLike(in[5]), zerosLike(in[6])};
         const std::vector<Tap> spatial =
             spatialTaps(int(ctx->saved_data["tapSize"].toInt()), int(ctx->saved_data["dilation"].toInt()));
         AT_DISPATCH_FLOATING_TYPES(in[0].scalar_type(), "fusedAffinityFilterBackward", [&] {
             forEachRow<scalar_t>(s, [&](int b, int y, RowScratch<scalar_t>& scratch) {
-                const Gradients<scalar_t> g{mutableElementOf<scalar_t>(grads[0], b), mutableElementOf<scalar_t>(grads[1], b),
-                                            mutableElementOf<scalar_t>(grads[2], b), mutableElementOf<scalar_t>(grads[3], b),
-                                            mutableElementOf<scalar_t>(grads[4], b), mutableElementOf<scalar_t>(grads[5], b),
-                                            mutableElementOf<scalar_t>(grads[6], b), mutableElementOf<scalar_t>(grads[7], b)};
+                const Gradients<scalar_t> g{
+                    mutableElementOf<scalar_t>(grads[0], b), mutableElementOf<scalar_t>(grads[1], b),
+                    mutableElementOf<scalar_t>(grads[2], b), mutableElementOf<scalar_t>(grads[3], b),
+                    mutableElementOf<scalar_t>(grads[4], b), mutableElementOf<scalar_t>(grads[5], b),
+                    mutableElementOf<scalar_t>(grads[6], b)};
                 backwardRow(elementAt<scalar_t>(in, b), s, spatial, elementOf<scalar_t>(gN, b),
                             elementOf<scalar_t>(gD, b), y, g, scratch);
             });
@@ -362,7 +359,6 @@ at::Tensor fusedAffinityFilter(const at::Tensor& radiance, const KernelParams& k
     checkMatches(kernel.features, radiance, F, "the features");
     checkMatches(kernel.bandwidth, radiance, 1, "the bandwidth");
     checkMatches(kernel.centre, radiance, 1, "the centre weight");
-    checkMatches(kernel.source, radiance, 1, "the source weight");
     if (!kernel.bandwidth.defined() || !kernel.centre.defined())
         throw Error("affinity filter: the bandwidth and centre weight are missing");
     at::Tensor tBandwidth, warpedOutput, warpedFeatures, warpedValid;
@@ -380,10 +376,9 @@ at::Tensor fusedAffinityFilter(const at::Tensor& radiance, const KernelParams& k
         warpedValid = temporal->valid.detach();
     }
     return FusedAffinityFilter::apply(radiance, kernel.features, kernel.bandwidth, kernel.centre,
-                                      absentAsEmpty(kernel.source, radiance), absentAsEmpty(tBandwidth, radiance),
-                                      absentAsEmpty(warpedOutput, radiance), absentAsEmpty(warpedFeatures, radiance),
-                                      absentAsEmpty(warpedValid, radiance), std::int64_t(tapSize),
-                                      std::int64_t(dilation));
+                                      absentAsEmpty(tBandwidth, radiance), absentAsEmpty(warpedOutput, radiance),
+                                      absentAsEmpty(warpedFeatures, radiance), absentAsEmpty(warpedValid, radiance),
+                                      std::int64_t(tapSize), std::int64_t(dilation));
 }
 
 }  // namespace affinity::train

@@ -6,7 +6,9 @@ namespace affinity::train {
 
 inline constexpr double kTemporalWeight = 0.25;
 
-// Weights of the loss terms; the defaults are the paper's loss. The absolute temporal term is
+// Weights of the loss terms; the defaults are the paper's loss. Every term here is part of the
+// shipped recipe (docs/TRAINING.md): the warped temporal terms, the absolute temporal term in the
+// last stage, the coarse term. The absolute temporal term is
 //   mean |dt O - dt O*| / (mean |O*| + 0.01)   (means per crop, over pixels and channels)
 // the benchmark's temporal error (docs/METHOD.md section 10) per unit of the crop's brightness.
 // SMAPE of dt O weighs a flickering lamp like a flickering shadow; the benchmark, and the eye in a
@@ -15,24 +17,6 @@ inline constexpr double kTemporalWeight = 0.25;
 // as the benchmark's temporal error does), counted only where the history is valid and the warp
 // lands inside the crop: the change a still camera would see, so the term measures flicker and
 // not the image moving.
-//
-// With boundedAbsoluteTemporal each pixel's |dt O - dt O*| is divided by its own reference
-// brightness plus the crop's mean, per channel:
-//   mean ( |dt O - dt O*| / (|O*| + mean |O*| + 0.01) )
-// The plain form lets one pixel own the term: a spark thousands of times brighter than its
-// crop, whose value the few samples of a frame cannot pin down, flickers by more than the rest
-// of the crop together, and a model trained on it learns to smear the spark's light over its
-// neighbours, where it then flickers less per pixel (a halo: docs/TRAINING.md, "Sparks in the
-// training data"). Bounded, a pixel's share is at most its relative change, while flicker in
-// the crop's ordinary and dark pixels still counts by its size against the crop's brightness.
-//
-// The absolute spatial term is the same measure of the image itself, per crop:
-//   mean |O - O*| / (mean |O*| + 0.01)
-// It balances the absolute temporal term. A spark's flicker can be lowered by averaging it over
-// time (what the term is for) or by smearing its light over its neighbours (a halo: docs/
-// TRAINING.md, "Sparks in the training data"). SMAPE barely sees the halo, since a pixel's SMAPE
-// is at most 1 however much light it wrongly holds; this term charges the moved light by its size,
-// on the same scale as the flicker it saves, so only the temporal route stays cheap.
 //
 // The coarse term is SMAPE(C O, C O*), C the mean over cells of coarseCell x coarseCell pixels
 // (partial cells at the crop's edge averaged over their pixels). Pixel SMAPE is minimised by the
@@ -47,8 +31,6 @@ struct LossWeights {
     bool warpedTemporal = false;
     double coarse = 0;
     int coarseCell = 8;
-    bool boundedAbsoluteTemporal = false;
-    double absoluteSpatial = 0;
 };
 
 }  // namespace affinity::train

@@ -1,6 +1,7 @@
 #include "model_config.h"
 
 #include <algorithm>
+#include <utility>
 
 #include "affinity/error.h"
 #include "affinity/features.h"
@@ -83,17 +84,13 @@ void validateConfig(const ModelConfig& config) {
     if (config.kernelSize < 1 || config.kernelSize > 63 || config.kernelSize % 2 == 0) {
         throw Error("model config: kernel size " + str(config.kernelSize) + " is not an odd number in 1..63");
     }
-    if (config.emissionLambda && !config.emissionBypass)
-        throw Error("model config: an emission lambda needs emission bypass (only bypassed emission has its own)");
 }
 
 std::vector<std::string> presetNames() { return {"tiny", "small", "medium", "paper"}; }
 
 bool ModelOptions::parseFlag(const std::string& flag) {
     bool* option = flag == "--albedo-demodulation" ? &albedoDemodulation
-                   : flag == "--source-weights"    ? &sourceWeights
                    : flag == "--emission-bypass"   ? &emissionBypass
-                   : flag == "--emission-lambda"   ? &emissionLambda
                                                    : nullptr;
     if (option) *option = true;
     return option != nullptr;
@@ -187,8 +184,13 @@ ModelConfig configFromWeights(const Weights& weights) {
     };
     config.albedoDemodulation = flag("config.albedo_demodulation");
     config.emissionBypass = flag("config.emission_bypass");
-    config.sourceWeights = flag("config.source_weights");
-    config.emissionLambda = flag("config.emission_lambda");
+    // Switches of variants that lost and were removed (docs/TRAINING.md, "Tried and lost"): a file
+    // that turns one on is refused rather than trained or exported as a different model.
+    for (const auto& [name, what] : {std::pair<const char*, const char*>{"config.source_weights", "source weights"},
+                                     {"config.emission_lambda", "separate emission lambdas"}})
+        if (flag(name))
+            throw Error(source + ": " + name + " = 1: " + what +
+                        " were removed (no shipped model used them); this version cannot load the model");
 
     for (int i = 0;; ++i) {
         const std::string name = "embed." + str(i) + ".weight";
@@ -221,8 +223,7 @@ ModelConfig configFromWeights(const Weights& weights) {
         if (view.shape != spec.shape) {
             throw Error(source + ": tensor " + spec.name + " has shape " + shapeText(view.shape) +
                         ", the model's structure needs " + shapeText(spec.shape) +
-                        " (head outputs P = K (F + " + str(config.kernelChannels() - config.affinityFeatures) +
-                        ") + " + str(config.emissionLambda ? 3 : 2) + " = " + str(config.headChannels()) + ")");
+                        " (head outputs P = K (F + 2) + 2 = " + str(config.headChannels()) + ")");
         }
     }
     for (const std::string& name : weights.names()) {
@@ -270,7 +271,7 @@ FlopCount flopCount(const ModelConfig& config) {
     // A neighbour tap: F differences, squares and sums, the bandwidth product, an exp, a
     // weighted multiply-add per filtered channel and the denominator.
     const int C = config.signalChannels();
-    const double tap = 3.0 * config.affinityFeatures + 4.0 + 2.0 * C + (config.sourceWeights ? 1.0 : 0.0);
+    const double tap = 3.0 * config.affinityFeatures + 4.0 + 2.0 * C;
     const double taps = double(config.kernelSize) * config.kernelSize - 1.0;
     flops.filterPerPixel = config.kernels * (taps * tap + 7.0 + 4.0) + 9.0 * tap;
     // Bilinear warps (8 per channel) of the embedding, radiance, output and features, the
@@ -280,7 +281,6 @@ FlopCount flopCount(const ModelConfig& config) {
     flops.filterPerPixel += 8.0 * (E + A + C + config.affinityFeatures) + 3.0 * (E + A);
     if (config.albedoDemodulation) flops.filterPerPixel += 2.0 * 6.0;
     if (config.emissionBypass) flops.filterPerPixel += 3.0;
-    if (config.emissionLambda) flops.filterPerPixel += 4.0;  // its sigmoid
     return flops;
 }
 

@@ -17,24 +17,19 @@ struct ConvStackSpec {
     int outWidth() const { return widths.empty() ? 0 : widths.back(); }
 };
 
-// The switches of a model that every preset leaves off, as a command line chooses them.
+// The switches of a model that every preset leaves off, as a command line chooses them. No
+// shipped model uses either; they stay because Cycles fine-tunes with both are being trained
+// (core/models/small_demod_bypass.affw, docs/TRAINING.md).
 struct ModelOptions {
     // Filter diffuse radiance divided by albedo (and specular as it is), then multiply the
     // albedo back (docs/MODEL.md section 6): texture detail need not survive the kernels.
     bool albedoDemodulation = false;
-    // Each kernel also weighs every pixel as a neighbour of others by a learned s in (0, 1)
-    // (docs/MODEL.md section 6): an outlier can be kept out of its neighbours' sums.
-    bool sourceWeights = false;
     // Samples flagged emissive (emitters and the sky, seen directly or through mirrors) bypass the
     // kernels: their radiance is accumulated but not filtered, and added back (docs/MODEL.md
     // section 1), so a light smaller than a pixel is not spread onto its neighbours.
     bool emissionBypass = false;
-    // The bypassed emission accumulates with its own learned lambda (one more head channel), so
-    // that a static light is averaged over frames while the filtered light follows the scene
-    // (docs/MODEL.md section 3). Needs emissionBypass.
-    bool emissionLambda = false;
-    // Sets the switch that `flag` names (--albedo-demodulation, --source-weights,
-    // --emission-bypass, --emission-lambda); false for any other flag.
+    // Sets the switch that `flag` names (--albedo-demodulation, --emission-bypass); false for any
+    // other flag.
     bool parseFlag(const std::string& flag);
 };
 
@@ -55,25 +50,26 @@ struct ModelConfig : ModelOptions {
     int accumulatedChannels() const {
         return signalChannels() + (albedoDemodulation ? 3 : 0) + (emissionBypass ? 3 : 0);
     }
-    // Head channels per kernel: features, bandwidth, centre weight (and source weight).
-    int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
-    // P = K kernelChannels() + 2 (+ 1): the kernels' parameters; temporal bandwidth, lambda
-    // (and the emission lambda).
-    int headChannels() const { return kernels * kernelChannels() + 2 + (emissionLambda ? 1 : 0); }
+    // Head channels per kernel: features, bandwidth, centre weight.
+    int kernelChannels() const { return affinityFeatures + 2; }
+    // P = K kernelChannels() + 2: the kernels' parameters; temporal bandwidth, lambda.
+    int headChannels() const { return kernels * kernelChannels() + 2; }
 };
 
 // Throws affinity::Error naming the first inconsistency (sizes < 1, even T, level counts).
 void validateConfig(const ModelConfig& config);
 
-// Named sizes: "tiny" (tests), "small" (the default for training on this machine's CPU),
-// "medium" (small's depths, wider), "paper" (widths like the paper's third-party
-// reimplementations).
+// Named sizes: "tiny", "small" and "medium" (the shipped models' sizes; tiny also for the tests'
+// quick runs), "paper" (widths like the paper's third-party reimplementations: never trained,
+// kept because scripts/bench_denoiser.sh times it as the ladder's paper-sized point).
 std::vector<std::string> presetNames();
 // Throws affinity::Error for unknown names.
 ModelConfig presetConfig(const std::string& name, const ModelOptions& options = {});
 
 // Reads the structure back from a weights file's tensors (docs/MODEL.md sections 4 and 8) and
-// checks every shape against it; throws affinity::Error naming the source and the tensor.
+// checks every shape against it; throws affinity::Error naming the source and the tensor, or the
+// switch of a removed variant that the file turns on (config.source_weights,
+// config.emission_lambda).
 ModelConfig configFromWeights(const Weights& weights);
 
 // The float tensors of a model as docs/MODEL.md names them, with their shapes, in the order

@@ -1,12 +1,10 @@
 // affinity_model_tool: creates randomly initialised weights files, describes weights files and
-// adds an emission lambda to a trained model (to fine-tune it from there).
+// widens a trained model to a larger preset (to fine-tune it from there, as the shipped medium
+// model was made).
 //   affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]
-//       [--emission-bypass] [--emission-lambda] [--source-weights]
+//       [--emission-bypass]
 //   affinity_model_tool describe FILE.affw
-//   affinity_model_tool add-emission-lambda IN.affw OUT.affw
 //   affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw
-//   affinity_model_tool narrow-embedding --channels N IN.affw OUT.affw
-//   affinity_model_tool narrow-level --level L --channels N IN.affw OUT.affw
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -24,15 +22,10 @@ namespace {
 
 constexpr const char* kUsage =
     "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]\n"
-    "           [--emission-bypass] [--emission-lambda] [--source-weights]   (the model options of docs/MODEL.md)\n"
+    "           [--emission-bypass]   (the model options of docs/MODEL.md)\n"
     "       affinity_model_tool describe FILE.affw\n"
-    "       affinity_model_tool add-emission-lambda IN.affw OUT.affw   (same function, one more head channel)\n"
     "       affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw   (same function, the preset's wider\n"
-    "           layers; the new channels' incoming weights initialised with seed N)\n"
-    "       affinity_model_tool narrow-embedding --channels N IN.affw OUT.affw   (keeps the N embedding channels\n"
-    "           the U-Net weighs most: a start for fine-tuning, not the same function)\n"
-    "       affinity_model_tool narrow-level --level L --channels N IN.affw OUT.affw   (U-Net level L's\n"
-    "           convolutions cut to their N most used outputs: a start for fine-tuning)\n";
+    "           layers; the new channels' incoming weights initialised with seed N)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -97,9 +90,7 @@ int runDescribe(const std::vector<std::string>& args) {
               << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
     std::cout << "  filters        "
               << (config.albedoDemodulation ? "diffuse / albedo and specular (albedo demodulation)" : "radiance")
-              << (config.sourceWeights ? ", neighbours weighed by source weights" : "")
-              << (config.emissionBypass ? ", emissive samples bypass the kernels" : "")
-              << (config.emissionLambda ? " with their own lambda" : "") << "\n";
+              << (config.emissionBypass ? ", emissive samples bypass the kernels" : "") << "\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];
@@ -112,14 +103,6 @@ int runDescribe(const std::vector<std::string>& args) {
                       spp, flops.perPixel(spp), flops.perPixel(spp) * 1920.0 * 1080.0 * 1e-9);
         std::cout << line;
     }
-    return 0;
-}
-
-int runAddEmissionLambda(const std::vector<std::string>& args) {
-    if (args.size() != 2) throw Error("add-emission-lambda: expected IN.affw OUT.affw");
-    if (args[0] == args[1]) throw Error("add-emission-lambda: the output must not overwrite the input");
-    writeWeightsFile(args[1], withEmissionLambda(Weights::fromFile(args[0])));
-    std::cout << "wrote " << args[1] << ": " << args[0] << " with an emission lambda (a copy of lambda)\n";
     return 0;
 }
 
@@ -159,30 +142,6 @@ int runWiden(const std::vector<std::string>& args) {
     return 0;
 }
 
-int runNarrowEmbedding(const std::vector<std::string>& args) {
-    if (args.size() != 4 || args[0] != "--channels")
-        throw Error("narrow-embedding: expected --channels N IN.affw OUT.affw");
-    if (args[2] == args[3]) throw Error("narrow-embedding: the output must not overwrite the input");
-    const std::uint64_t channels = nonNegativeInteger("narrow-embedding: --channels", args[1]);
-    if (channels > 4096) throw Error("narrow-embedding: --channels " + args[1] + " is more than any model has");
-    writeWeightsFile(args[3], withNarrowerEmbedding(Weights::fromFile(args[2]), int(channels)));
-    std::cout << "wrote " << args[3] << ": " << args[2] << " with " << channels << " embedding channels\n";
-    return 0;
-}
-
-int runNarrowLevel(const std::vector<std::string>& args) {
-    if (args.size() != 6 || args[0] != "--level" || args[2] != "--channels")
-        throw Error("narrow-level: expected --level L --channels N IN.affw OUT.affw");
-    if (args[4] == args[5]) throw Error("narrow-level: the output must not overwrite the input");
-    const std::uint64_t level = nonNegativeInteger("narrow-level: --level", args[1]);
-    const std::uint64_t channels = nonNegativeInteger("narrow-level: --channels", args[3]);
-    if (level > 64 || channels > 4096) throw Error("narrow-level: --level or --channels is more than any model has");
-    writeWeightsFile(args[5], withNarrowerLevel(Weights::fromFile(args[4]), int(level), int(channels)));
-    std::cout << "wrote " << args[5] << ": " << args[4] << " with " << channels << " channels at U-Net level " << level
-              << "\n";
-    return 0;
-}
-
 }  // namespace
 }  // namespace affinity::train
 
@@ -196,10 +155,7 @@ int main(int argc, char** argv) {
     try {
         if (args[0] == "init") return affinity::train::runInit(rest);
         if (args[0] == "describe") return affinity::train::runDescribe(rest);
-        if (args[0] == "add-emission-lambda") return affinity::train::runAddEmissionLambda(rest);
         if (args[0] == "widen") return affinity::train::runWiden(rest);
-        if (args[0] == "narrow-embedding") return affinity::train::runNarrowEmbedding(rest);
-        if (args[0] == "narrow-level") return affinity::train::runNarrowLevel(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

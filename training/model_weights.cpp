@@ -27,9 +27,7 @@ std::vector<NamedTensor> modelTensors(const AffinityModel& model) {
     integer("config.affinity_features", config.affinityFeatures);
     integer("config.kernel_size", config.kernelSize);
     if (config.albedoDemodulation) integer("config.albedo_demodulation", 1);
-    if (config.sourceWeights) integer("config.source_weights", 1);
     if (config.emissionBypass) integer("config.emission_bypass", 1);
-    if (config.emissionLambda) integer("config.emission_lambda", 1);
     return tensors;
 }
 

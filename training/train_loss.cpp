@@ -13,11 +13,6 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference) {
     return ((image - reference).abs() / (image.abs() + reference.abs() + kSmapeEpsilon)).mean();
 }
 
-at::Tensor relativeL1Loss(const at::Tensor& image, const at::Tensor& reference) {
-    const std::vector<std::int64_t> perCrop{1, 2, 3};
-    return ((image - reference).abs().mean(perCrop) / (reference.abs().mean(perCrop) + kSmapeEpsilon)).mean();
-}
-
 at::Tensor cellMeans(const at::Tensor& image, int cell) {
     if (cell < 1) throw Error("cellMeans: the cell size must be at least 1");
     const std::int64_t padBottom = (cell - image.size(2) % cell) % cell, padRight = (cell - image.size(3) % cell) % cell;
@@ -43,14 +38,12 @@ struct TemporalPair {
         const at::Tensor error = (change - referenceChange).abs() / (change.abs() + referenceChange.abs() + kSmapeEpsilon);
         return maskedMean(error, {0, 1, 2, 3});
     }
-    // mean |dt O - dt O*| / (mean |O*| + 0.01), the means taken per crop of the batch; bounded:
-    // mean (|dt O - dt O*| / (|O*| + mean |O*| + 0.01)) (loss_weights.h).
-    at::Tensor absolute(const at::Tensor& reference, bool bounded) const {
+    // mean |dt O - dt O*| / (mean |O*| + 0.01), the means taken per crop of the batch
+    // (loss_weights.h).
+    at::Tensor absolute(const at::Tensor& reference) const {
         const std::vector<std::int64_t> perCrop{1, 2, 3};
-        const at::Tensor magnitude = reference.abs();
-        const at::Tensor brightness = magnitude.mean(perCrop, /*keepdim=*/true) + kSmapeEpsilon;
+        const at::Tensor brightness = reference.abs().mean(perCrop, /*keepdim=*/true) + kSmapeEpsilon;
         const at::Tensor difference = (change - referenceChange).abs();
-        if (bounded) return maskedMean(difference / (magnitude + brightness), perCrop).mean();
         return (maskedMean(difference, perCrop) / brightness.flatten()).mean();
     }
 };
@@ -82,11 +75,9 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     const at::TensorOptions options = outputs[0].options();
     at::Tensor spatial = at::zeros({}, options), temporal = at::zeros({}, options);
     at::Tensor absoluteTemporal = at::zeros({}, options), coarse = at::zeros({}, options);
-    at::Tensor absoluteSpatial = at::zeros({}, options);
     at::Tensor regulariser = at::zeros({}, options);
     for (std::size_t t = 0; t < frames; ++t) {
         spatial = spatial + smapeLoss(outputs[t], references[t]);
-        if (weights.absoluteSpatial != 0) absoluteSpatial = absoluteSpatial + relativeL1Loss(outputs[t], references[t]);
         if (weights.coarse != 0) {
             coarse = coarse + smapeLoss(cellMeans(outputs[t], weights.coarseCell), cellMeans(references[t], weights.coarseCell));
         }
@@ -100,7 +91,7 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
                 pair = {outputs[t] - outputs[t - 1], references[t] - references[t - 1], at::Tensor()};
             }
             temporal = temporal + pair.smape();
-            if (weights.absoluteTemporal != 0) absoluteTemporal = absoluteTemporal + pair.absolute(references[t], weights.boundedAbsoluteTemporal);
+            if (weights.absoluteTemporal != 0) absoluteTemporal = absoluteTemporal + pair.absolute(references[t]);
         }
         if (!bandwidths.empty()) {
             for (const at::Tensor& bandwidth : bandwidths[t]) regulariser = regulariser + bandwidth.square().mean();
@@ -111,12 +102,10 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     const double pairs = double(std::max<std::size_t>(frames - 1, 1));
     terms.temporal = temporal / pairs;
     terms.absoluteTemporal = absoluteTemporal / pairs;
-    terms.absoluteSpatial = absoluteSpatial / double(frames);
     terms.coarse = coarse / double(frames);
     terms.regulariser = regulariser / double(frames);
     terms.total = terms.spatial + weights.temporal * terms.temporal +
-                  weights.absoluteTemporal * terms.absoluteTemporal + weights.absoluteSpatial * terms.absoluteSpatial +
-                  weights.coarse * terms.coarse +
+                  weights.absoluteTemporal * terms.absoluteTemporal + weights.coarse * terms.coarse +
                   kRegulariserWeight * terms.regulariser;
     return terms;
 }

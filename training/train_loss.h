@@ -3,8 +3,8 @@
 //   Loss = SMAPE(O, O*) + 0.25 SMAPE(dt O, dt O*) + 1e-5 (sum_k E[(a^k)^2] + E[b^2])
 //   SMAPE(A, B) = mean over pixels and channels of |A - B| / (|A| + |B| + 0.01)
 // where dt is the difference between consecutive frames. Optional terms (LossWeights: absolute
-// temporal, absolute spatial, coarse) are off in the paper's loss. Plain ATen ops: autograd provides the
-// gradients (tests/cpp/test_training.cpp checks them against finite differences).
+// temporal, coarse) are off in the paper's loss. Plain ATen ops: autograd provides the gradients
+// (tests/cpp/test_training.cpp checks them against finite differences).
 #include <vector>
 
 #include <ATen/core/Tensor.h>
@@ -18,10 +18,6 @@ inline constexpr double kRegulariserWeight = 1e-5;
 
 // mean |a - b| / (|a| + |b| + 0.01) over every element.
 at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
-
-// mean |image - reference| / (mean |reference| + 0.01), the means per crop of the batch
-// [B, C, H, W], averaged over the crops.
-at::Tensor relativeL1Loss(const at::Tensor& image, const at::Tensor& reference);
 
 // [B, C, H, W] -> [B, C, ceil(H / cell), ceil(W / cell)]: the mean of each cell x cell block, a
 // partial block at the bottom or right edge averaged over the pixels it has.
@@ -39,7 +35,6 @@ struct LossTerms {
     at::Tensor spatial;           // SMAPE(O, O*) averaged over frames
     at::Tensor temporal;          // SMAPE(dt O, dt O*) averaged over frame pairs (0 for one frame)
     at::Tensor absoluteTemporal;  // the absolute temporal term averaged over frame pairs
-    at::Tensor absoluteSpatial;   // the absolute spatial term averaged over frames
     at::Tensor coarse;            // SMAPE of the cell means averaged over frames
     at::Tensor regulariser;  // sum_k E[(a^k)^2] + E[b^2], averaged over frames
 };

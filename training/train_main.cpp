@@ -18,26 +18,20 @@ constexpr const char* kUsage =
     "  --train DIR         training sequences (default DATA/train)\n"
     "  --val DIR           validation sequences with clean references (default DATA/val if present)\n"
     "  --out DIR           loss.csv, checkpoint.affw, optimizer.pt, state.txt, best.affw, final.affw\n"
-    "  --preset NAME       tiny | small | paper (default tiny)\n"
+    "  --preset NAME       tiny | small | medium | paper (default tiny)\n"
     "  --init FILE.affw    start from these weights instead of a fresh model\n"
     "  --albedo-demodulation  a fresh model filters diffuse / albedo and specular (docs/MODEL.md)\n"
-    "  --source-weights    a fresh model's kernels weigh each neighbour by a learned s (docs/MODEL.md)\n"
     "  --emission-bypass   a fresh model leaves emissive samples unfiltered (docs/MODEL.md)\n"
-    "  --emission-lambda   with --emission-bypass: the bypassed emission gets its own learned lambda\n"
     "  --steps N           total steps (default 1000); a resumed run continues up to N\n"
     "  --minutes M         stop this run after M minutes of wall time (default: no limit)\n"
     "  --batch B           crops per step (4)      --crop C      crop side (64)\n"
     "  --frames T          frames per sequence, back-propagated through (6)\n"
-    "  --min-spp N --max-spp N   spp drawn per step (2..8)   --val-spp N   (4)\n"
-    "  --spp-log-uniform   draw that spp log-uniformly (most steps at few samples; default uniform)\n"
+    "  --min-spp N --max-spp N   spp drawn uniformly per step (2..8)   --val-spp N   (4)\n"
     "  --lr X              Adam learning rate (1e-3)   --lr-half-life N   halve every N steps (0: off)\n"
     "  --clip X            gradient norm clipping (1; 0: off)\n"
     "  --temporal-weight W weight of the temporal SMAPE term (0.25, the paper's)\n"
     "  --absolute-temporal-weight W  weight of mean |dt O - dt O*| / mean |O*| (0; train_loss.h)\n"
     "  --warped-temporal   dt O = O_t - O_{t-1} warped by the motion, valid pixels only (train_loss.h)\n"
-    "  --bounded-absolute-temporal  divide each pixel's absolute temporal error by its own reference\n"
-    "                      brightness plus the crop's mean, so no spark owns the term (loss_weights.h)\n"
-    "  --absolute-spatial-weight W  weight of mean |O - O*| / mean |O*|, against halos (0; loss_weights.h)\n"
     "  --coarse-weight W   weight of SMAPE of cell means, against dark bias (0; train_loss.h)\n"
     "  --coarse-cell N     cell side of that term, pixels (8)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
@@ -45,9 +39,15 @@ constexpr const char* kUsage =
     "  --max-sequences N   use the first N training sequences only\n"
     "  --keep-spp N        hold only the first N samples per pixel of each training sequence in\n"
     "                      memory (at least --max-spp): half the memory of 16-spp data at 8\n"
-    "  --no-augment        no flips, rotations or colour permutations\n"
     "  --fresh             ignore an existing checkpoint in --out\n"
     "  --export FILE.affw  copy the best (lowest validation loss) weights here at the end\n";
+
+// The options that take a value (each parsed below), space-separated.
+constexpr const char* kValueOptions =
+    " --data --train --val --out --preset --init --steps --minutes --batch --crop --frames --min-spp"
+    " --max-spp --val-spp --lr --lr-half-life --clip --temporal-weight --absolute-temporal-weight"
+    " --coarse-weight --coarse-cell --val-every --checkpoint-every --threads --device --seed"
+    " --max-sequences --keep-spp --export ";
 
 }  // namespace
 
@@ -64,20 +64,8 @@ int main(int argc, char** argv) {
     try {
         for (std::size_t i = 0; i < args.size(); ++i) {
             const std::string& flag = args[i];
-            if (flag == "--no-augment") {
-                options.augment = false;
-                continue;
-            }
             if (flag == "--warped-temporal") {
                 options.loss.warpedTemporal = true;
-                continue;
-            }
-            if (flag == "--bounded-absolute-temporal") {
-                options.loss.boundedAbsoluteTemporal = true;
-                continue;
-            }
-            if (flag == "--spp-log-uniform") {
-                options.sppLogUniform = true;
                 continue;
             }
             if (flag == "--fresh") {
@@ -85,6 +73,9 @@ int main(int argc, char** argv) {
                 continue;
             }
             if (options.model.parseFlag(flag)) continue;
+            // A removed or mistyped switch is named as unknown, not as missing its value.
+            if (std::string(kValueOptions).find(" " + flag + " ") == std::string::npos)
+                throw affinity::Error("unknown option " + flag);
             if (i + 1 >= args.size()) throw affinity::Error(flag + " needs a value");
             const std::string& value = args[++i];
             auto integer = [&] {
@@ -128,7 +119,6 @@ int main(int argc, char** argv) {
             else if (flag == "--clip") options.clipNorm = real();
             else if (flag == "--temporal-weight") options.loss.temporal = real();
             else if (flag == "--absolute-temporal-weight") options.loss.absoluteTemporal = real();
-            else if (flag == "--absolute-spatial-weight") options.loss.absoluteSpatial = real();
             else if (flag == "--coarse-weight") options.loss.coarse = real();
             else if (flag == "--coarse-cell") options.loss.coarseCell = integer();
             else if (flag == "--val-every") options.valEvery = integer();

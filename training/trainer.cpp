@@ -166,19 +166,9 @@ Batch assemble(std::vector<Clip>& clips, const torch::Device& device) {
     return batch;
 }
 
-}  // namespace
-
-int drawBatchSpp(int low, int high, bool logUniform, std::mt19937_64& rng) {
-    if (!logUniform) return std::uniform_int_distribution<int>(low, high)(rng);
-    const double u = std::uniform_real_distribution<double>(std::log(double(low)), std::log(double(high) + 1.0))(rng);
-    return std::clamp(int(std::floor(std::exp(u))), low, high);  // the clamp guards exp's rounding at the ends
-}
-
-namespace {
-
 // A random training batch: `batch` sequences (with repetition), one random window of frames,
 // one random square crop per sequence (the same in all its frames), one spp for the batch drawn
-// in [minSpp, maxSpp] (drawBatchSpp) as a random subset of each sequence's rendered samples.
+// uniformly in [minSpp, maxSpp] as a random subset of each sequence's rendered samples.
 Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options, std::mt19937_64& rng,
                   const torch::Device& device) {
     std::int64_t frameCount = options.frames, size = options.crop, spp = 64;
@@ -189,7 +179,7 @@ Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options
     }
     const std::int64_t lowSpp = std::min<std::int64_t>(options.minSpp, spp);
     const std::int64_t highSpp = std::min<std::int64_t>(options.maxSpp, spp);
-    const std::int64_t batchSpp = drawBatchSpp(int(lowSpp), int(highSpp), options.sppLogUniform, rng);
+    const std::int64_t batchSpp = std::uniform_int_distribution<int>(int(lowSpp), int(highSpp))(rng);
     std::vector<Clip> clips;
     for (int b = 0; b < options.batch; ++b) {
         const Sequence& sequence = data[std::uniform_int_distribution<std::size_t>(0, data.size() - 1)(rng)];
@@ -201,7 +191,7 @@ Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options
         std::shuffle(indices.begin(), indices.end(), rng);
         indices.resize(std::size_t(batchSpp));
         Clip clip = cutClip(sequence, first, frameCount, y, x, size, indices);
-        if (options.augment) applyAugmentation(clip, randomAugmentation(rng));
+        applyAugmentation(clip, randomAugmentation(rng));
         clips.push_back(std::move(clip));
     }
     return assemble(clips, device);
@@ -246,7 +236,7 @@ ForwardResult forwardBatch(AffinityModel& model, const Batch& batch, const LossW
 }
 
 struct Validation {
-    double loss = 0, smape = 0, temporal = 0, absoluteTemporal = 0, noisySmape = 0, coarse = 0, absoluteSpatial = 0;
+    double loss = 0, smape = 0, temporal = 0, absoluteTemporal = 0, noisySmape = 0, coarse = 0;
 };
 
 // loss is the training loss without the regulariser.
@@ -263,20 +253,18 @@ Validation validate(AffinityModel& model, const std::vector<Batch>& batches, con
         result.absoluteTemporal += forward.loss.absoluteTemporal.item<double>();
         result.noisySmape += forward.noisySmape.item<double>();
         result.coarse += forward.loss.coarse.item<double>();
-        result.absoluteSpatial += forward.loss.absoluteSpatial.item<double>();
     }
     model->train();
     const double n = double(batches.size());
-    return {result.loss / n, result.smape / n, result.temporal / n, result.absoluteTemporal / n,
-            result.noisySmape / n, result.coarse / n, result.absoluteSpatial / n};
+    return {result.loss / n,       result.smape / n, result.temporal / n, result.absoluteTemporal / n,
+            result.noisySmape / n, result.coarse / n};
 }
 
 void checkOptions(const TrainOptions& o) {
     if (o.trainDir.empty() || o.outDir.empty()) throw Error("training needs a data folder and an output folder");
     if (o.steps < 1 || o.batch < 1 || o.crop < 8 || o.frames < 1 || o.minSpp < 1 || o.maxSpp < o.minSpp ||
         o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1 ||
-        !(o.loss.temporal >= 0) || !(o.loss.absoluteTemporal >= 0) || !(o.loss.absoluteSpatial >= 0) ||
-        !(o.loss.coarse >= 0) || o.loss.coarseCell < 1) {
+        !(o.loss.temporal >= 0) || !(o.loss.absoluteTemporal >= 0) || !(o.loss.coarse >= 0) || o.loss.coarseCell < 1) {
         throw Error("training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
                     "loss weights >= 0, coarse cell >= 1)");
     }
@@ -357,7 +345,7 @@ TrainSummary runTraining(const TrainOptions& options) {
     std::ofstream csv(csvFile, newCsv ? std::ios::trunc : std::ios::app);
     if (newCsv) {
         csv << "step,elapsed_s,lr,train_loss,train_smape,train_temporal,train_regulariser,train_noisy_smape,"
-               "val_loss,val_smape,val_temporal,val_noisy_smape,val_absolute_temporal,val_coarse,val_absolute_spatial\n";
+               "val_loss,val_smape,val_temporal,val_noisy_smape,val_absolute_temporal,val_coarse\n";
     }
 
     TrainSummary summary;
@@ -390,10 +378,9 @@ TrainSummary runTraining(const TrainOptions& options) {
                         double trainNoisy) {
         const Validation v = validate(model, val, lossWeights);
         char line[512];
-        std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
-                      elapsedBefore + elapsed(), learningRateAt(options, step), trainLoss, trainSmape,
-                      trainTemporal, trainReg, trainNoisy, v.loss, v.smape, v.temporal, v.noisySmape,
-                      v.absoluteTemporal, v.coarse, v.absoluteSpatial);
+        std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
+                      elapsedBefore + elapsed(), learningRateAt(options, step), trainLoss, trainSmape, trainTemporal,
+                      trainReg, trainNoisy, v.loss, v.smape, v.temporal, v.noisySmape, v.absoluteTemporal, v.coarse);
         csv << line;
         csv.flush();
         if (!val.empty()) {

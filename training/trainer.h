@@ -3,7 +3,6 @@
 // sequences as the renderer writes them (one folder per sequence, frame_NNNN.exr with a
 // reference). Torch-free interface: the CLI (train_main.cpp) and the tests call runTraining.
 #include <cstdint>
-#include <random>
 #include <string>
 
 #include "loss_weights.h"
@@ -17,17 +16,15 @@ struct TrainOptions {
     std::string outDir;         // loss.csv, checkpoint.affw, optimizer.pt, state.txt, best.affw, final.affw
     std::string preset = "tiny";
     std::string initWeights;    // start from this weights file instead of a fresh preset model
-    ModelOptions model;         // switches of a fresh preset model (demodulation, source weights, bypass)
+    ModelOptions model;         // switches of a fresh preset model (albedo demodulation, emission bypass)
     std::uint64_t seed = 1;     // model initialisation and every random choice of the batches
     int steps = 1000;           // total optimisation steps (a resumed run continues up to this)
     double maxMinutes = 0;      // stop earlier after this much wall time in this run (0: no limit)
     int batch = 4;              // crops per step (independent sequences advancing together)
     int crop = 64;              // square crop side, the same window in every frame of a sequence
     int frames = 6;             // frames per training sequence (back-propagation through all of them)
-    int minSpp = 2, maxSpp = 8; // samples per pixel drawn per step from the rendered ones
-    bool sppLogUniform = false; // draw the spp log-uniformly (as many steps in 2-4 as in 4-8, 8-16)
+    int minSpp = 2, maxSpp = 8; // samples per pixel drawn uniformly per step from the rendered ones
     int valSpp = 4;             // samples per pixel for validation (the first valSpp samples)
-    bool augment = true;        // dihedral transforms (motion transformed too) and colour permutations
     double learningRate = 1e-3;
     int lrHalfLife = 0;         // learning rate halves every lrHalfLife steps (0: constant)
     LossWeights loss;           // the loss terms' weights (loss_weights.h); the defaults are the paper's
@@ -36,9 +33,11 @@ struct TrainOptions {
     int checkpointEvery = 100;  // checkpoint every checkpointEvery steps (and at the end)
     int threads = 2;            // torch intra-op threads
     std::string device = "cpu"; // torch device: "cpu", or "cuda" where libtorch was built with CUDA
+    // Resource limits, not variants of the recipe: a quick run on part of the data, and more
+    // sequences in RAM than whole 16-spp ones fit (the drawn spp stay in minSpp..maxSpp).
     int maxSequences = 0;       // use only the first N training sequences (0: all)
     int keepSpp = 0;            // hold only each training sequence's first N samples per pixel in
-                                // memory (0: all; else at least maxSpp), for more sequences in RAM
+                                // memory (0: all; else at least maxSpp)
     bool resume = true;         // continue from outDir's checkpoint when there is one
     bool quiet = false;
 };
@@ -57,10 +56,5 @@ struct TrainSummary {
 
 // Throws affinity::Error for bad options or data.
 TrainSummary runTraining(const TrainOptions& options);
-
-// One step's samples per pixel in [low, high]: uniform, or log-uniform (count s drawn with
-// probability log((s + 1) / s) / log((high + 1) / low)), so that a wide range such as 2-16
-// still spends most steps at the few samples the denoiser is for.
-int drawBatchSpp(int low, int high, bool logUniform, std::mt19937_64& rng);
 
 }  // namespace affinity::train

@@ -159,7 +159,6 @@ void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tap
     checkMap(*kernel.features, "the features", imageHeight, ringRows, width, features);
     checkMap(*kernel.bandwidth, "the bandwidth a", imageHeight, ringRows, width, 1);
     checkMap(*kernel.centre, "the centre weight c", imageHeight, ringRows, width, 1);
-    if (kernel.source != nullptr) checkMap(*kernel.source, "the source weight s", imageHeight, ringRows, width, 1);
     if (temporal != nullptr) {
         checkMap(*temporal->bandwidth, "the temporal bandwidth b", imageHeight, ringRows, width, 1);
         checkMap(*temporal->output, "the warped output", imageHeight, ringRows, width, channels);
@@ -171,7 +170,6 @@ void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tap
 bool isInput(const FeatureMap& map, const FeatureMap& radiance, const KernelParams& kernel,
              const TemporalTaps* temporal) {
     return &map == &radiance || &map == kernel.features || &map == kernel.bandwidth || &map == kernel.centre ||
-           &map == kernel.source ||
            (temporal != nullptr && (&map == temporal->bandwidth || &map == temporal->output ||
                                     &map == temporal->features || &map == temporal->valid));
 }
@@ -205,7 +203,6 @@ void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int t
     const int features = kernel.features->channels();
 
     std::vector<const FeatureMap*> spatialSources = {kernel.features, &radiance, kernel.bandwidth, kernel.centre};
-    if (kernel.source != nullptr) spatialSources.push_back(kernel.source);
     if (temporal != nullptr) spatialSources.push_back(temporal->bandwidth);
     if (isa == ConvIsa::Avx512 && !cpuHasAvx512())
         throw Error("affinity filter: the AVX-512 path was asked for, but this CPU or build has no AVX-512");
@@ -239,7 +236,6 @@ void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int t
             FilterRowInputs in{};
             in.width = width;
             in.features = features;
-            in.sourceWeights = kernel.source != nullptr;
             in.stride = spatial.stride();
             in.centre = taps[std::size_t(radius)];
             in.taps = taps.data();

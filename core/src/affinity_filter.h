@@ -6,14 +6,12 @@
 
 namespace affinity {
 
-// Per-pixel parameters of one kernel: features f (F channels), bandwidth a, centre weight c
-// and, in models with source weights, the weight s of each pixel as a neighbour of others (c and
-// s already through their sigmoid; null s: 1 everywhere). a, c and s are single-channel maps.
+// Per-pixel parameters of one kernel: features f (F channels), bandwidth a and centre weight c
+// (already through its sigmoid); a and c are single-channel maps.
 struct KernelParams {
     const FeatureMap* features;
     const FeatureMap* bandwidth;
     const FeatureMap* centre;
-    const FeatureMap* source = nullptr;
 };
 
 // The inputs of the temporal taps of the last pass (docs/MODEL.md section 7).

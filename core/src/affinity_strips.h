@@ -17,9 +17,8 @@ namespace affinity {
 struct FilterRowInputs {
     int width;
     int features;
-    bool sourceWeights;          // an s plane follows c
     std::size_t stride;          // of the spatial rows
-    const float* centre;         // features, signal, a, c (s with source weights, b when temporal) at row y
+    const float* centre;         // features, signal, a, c (and b when temporal) at row y
     const float* const* taps;    // per tap row j = 0..T-1: features and signal, or null outside
     int tapSize;
     int dilation;
@@ -85,8 +84,8 @@ struct VectorSums {
 
 // Adds one tap, the neighbour at the same offset for every lane: `neighbour` points at the
 // features of the first lane's neighbour, `column` is that neighbour's image column, `signal`
-// its kChannels filtered values; `scale` (null for none) multiplies each weight: the source
-// weight s of a spatial tap, the validity of a temporal one.
+// its kChannels filtered values; `scale` (null for none: the spatial taps) multiplies each
+// weight: the validity of a temporal tap.
 // kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
 template <int L, int kFeatures, int kChannels, bool kCheckColumns>
 void addTap(VectorSums<L, kChannels>& sums, VecF<L> negativeBandwidthSquared, const float* centre,
@@ -113,8 +112,6 @@ template <int L, int kFeatures, int kChannels, bool kCheckColumns, bool kTempora
 void filterStrip(const FilterRowInputs& in, int x, float* output) {
     const int features = kFeatures > 0 ? kFeatures : in.features;
     const std::size_t stride = in.stride;
-    // A neighbour's s plane lies this far after its features (none: every s is 1).
-    const std::ptrdiff_t sourceOffset = in.sourceWeights ? std::ptrdiff_t(features + kChannels + 2) * std::ptrdiff_t(stride) : 0;
     const int radius = in.tapSize / 2;
     const int count = std::min((kStripVectors * L), in.width - x);
 
@@ -138,15 +135,13 @@ void filterStrip(const FilterRowInputs& in, int x, float* output) {
                 const float* neighbour = tapRow + column;
                 addTap<L, kFeatures, kChannels, kCheckColumns>(sums, negativeBandwidthSquared, centre, stride,
                                                                neighbour, stride, neighbour + features * stride,
-                                                               in.sourceWeights ? neighbour + sourceOffset : nullptr,
-                                                               features, column, in.width);
+                                                               nullptr, features, column, in.width);
             }
         }
 
         if constexpr (kTemporal) {
             const std::size_t temporalStride = in.temporalStride;
-            const VecF<L> b =
-                loadLanes<L>(centre + (features + kChannels + (in.sourceWeights ? 3 : 2)) * stride);
+            const VecF<L> b = loadLanes<L>(centre + (features + kChannels + 2) * stride);
             const VecF<L> negativeTemporalSquared = -(b * b);
             for (int j = 0; j < 3; ++j) {
                 const float* tapRow = in.temporalRows[j];

@@ -172,12 +172,11 @@ constexpr int kBandRows = 128;
 // rows except the last kernel's features, which the next frame's temporal taps read.
 struct KernelMaps {
     std::vector<FeatureMap> features, bandwidth, centre;  // per kernel: F channels, 1, 1
-    std::vector<FeatureMap> source;                       // per kernel, 1 channel (models with source weights)
     FeatureMap temporalBandwidth;                         // 1 channel
 
     KernelParams kernel(int k) const {
         const std::size_t i = std::size_t(k);
-        return KernelParams{&features[i], &bandwidth[i], &centre[i], source.empty() ? nullptr : &source[i]};
+        return KernelParams{&features[i], &bandwidth[i], &centre[i]};
     }
 };
 
@@ -370,7 +369,6 @@ KernelMaps Denoiser::State::takeKernelMaps(const Network& net, int height, int w
         maps.features.push_back(pool.take(k + 1 == net.kernels ? height : ringRows, width, net.affinityFeatures));
         maps.bandwidth.push_back(pool.take(ringRows, width, 1));
         maps.centre.push_back(pool.take(ringRows, width, 1));
-        if (net.sourceWeights) maps.source.push_back(pool.take(ringRows, width, 1));
     }
     maps.temporalBandwidth = pool.take(ringRows, width, 1);
     return maps;
@@ -396,10 +394,7 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
         head.outChannels() != net.headChannels())
         throw Error("denoise: the model's last layers do not fit together");
     const int E = embedding.channels(), S = signal.channels(), C = filterIn.channels();
-    // Signal channels accumulated with lambda; the rest (the bypassed emission) with the emission
-    // lambda where the model has one.
-    const int lambdaChannels = net.emissionLambda ? S - 3 : S;
-    if (C > lambdaChannels) throw Error("denoise: the filtered channels must accumulate with lambda");
+    if (C > S) throw Error("denoise: the filtered channels must be part of the accumulated signal");
     const int tiles = (columns + kConvTileWidth - 1) / kConvTileWidth;
     // The convolution runs kWinogradRows rows at a time (its Winograd form's tiles); a group
     // reaching past the band is recomputed by the neighbouring band, but only the band's rows go on.
@@ -410,8 +405,8 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
         std::vector<float> decoded[kWinogradRows];
         for (std::vector<float>& row : decoded) row.resize(std::size_t(columns) * std::size_t(last.outChannels()));
         std::vector<float> params(std::size_t(columns) * std::size_t(head.outChannels()));
-        // A tile's lambda and emission lambda: only its accumulation reads them.
-        std::vector<float> lambda(kConvTileWidth), emissionLambda(kConvTileWidth);
+        // A tile's lambda: only its accumulation reads it.
+        std::vector<float> lambda(kConvTileWidth);
 #pragma omp for schedule(dynamic)
         for (long long task = 0; task < tasks; ++task) {
             const int y0 = kWinogradRows * (firstGroup + int(task / tiles));
@@ -432,28 +427,23 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
                     float* features = row(maps.features[k]);
                     float* bandwidth = row(maps.bandwidth[k]);
                     float* centre = row(maps.centre[k]);
-                    float* source = maps.source.empty() ? nullptr : row(maps.source[k]);
                     for (int x = x0; x < x1; ++x) {
                         const float* base = params.data() + std::size_t(x) * std::size_t(head.outChannels()) + int(k) * G;
                         copyPixel(base, F, features + std::size_t(x) * F);
                         bandwidth[x] = base[F];
                         centre[x] = base[F + 1];
-                        if (source) source[x] = base[F + 2];
                     }
                     sigmoidInPlace(centre + x0, x1 - x0);
-                    if (source) sigmoidInPlace(source + x0, x1 - x0);
                 }
                 float* temporalBandwidth = row(maps.temporalBandwidth);
                 for (int x = x0; x < x1; ++x) {
                     const float* o = params.data() + std::size_t(x) * std::size_t(head.outChannels());
                     temporalBandwidth[x] = o[K * G];
                     lambda[std::size_t(x - x0)] = o[K * G + 1];
-                    if (net.emissionLambda) emissionLambda[std::size_t(x - x0)] = o[K * G + 2];
                 }
                 sigmoidInPlace(lambda.data(), x1 - x0);
-                if (net.emissionLambda) sigmoidInPlace(emissionLambda.data(), x1 - x0);
                 // 3 (continued). history = (1 - lambda) current + lambda history, in place; the
-                // kernels filter the first C channels of the accumulated signal (C <= lambdaChannels).
+                // kernels filter the first C channels of the accumulated signal (C <= S).
                 // The filtered copy is stored from the same values: reading the just-stored floats
                 // back as one wider load stalled on store forwarding (a third of this stage's time).
                 float* filtered = row(filterIn);
@@ -466,9 +456,7 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
                     float* accumulated = historySignal.pixel(y, x);
                     float* f = filtered + std::size_t(x) * C;
                     for (int c = 0; c < C; ++c) f[c] = accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
-                    for (int c = C; c < lambdaChannels; ++c) accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
-                    const float le = emissionLambda[std::size_t(x - x0)];
-                    for (int c = lambdaChannels; c < S; ++c) accumulated[c] = (1.0f - le) * current[c] + le * accumulated[c];
+                    for (int c = C; c < S; ++c) accumulated[c] = (1.0f - l) * current[c] + l * accumulated[c];
                 }
             }
         }
@@ -476,7 +464,7 @@ void Denoiser::State::parametersAndAccumulation(const Network& net, const UnetTa
 }
 
 void Denoiser::State::give(KernelMaps& maps) {
-    for (std::vector<FeatureMap>* list : {&maps.features, &maps.bandwidth, &maps.centre, &maps.source})
+    for (std::vector<FeatureMap>* list : {&maps.features, &maps.bandwidth, &maps.centre})
         for (FeatureMap& map : *list) pool.give(map);
     pool.give(maps.temporalBandwidth);
 }

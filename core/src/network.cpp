@@ -37,6 +37,14 @@ public:
     // An optional 0/1 switch: files written before it existed lack it, which reads as off.
     bool flag(const std::string& name) { return weights_.has(name) && config(name, 0, 1) == 1; }
 
+    // A switch of a variant that lost and was removed (docs/TRAINING.md, "Tried and lost"): off
+    // (0 or absent) is the model this code computes; on, the file is refused rather than misread.
+    void removedFlag(const std::string& name, const std::string& what) {
+        if (flag(name))
+            fail(name + " = 1: " + what +
+                 " were removed (no shipped model used them); this version cannot run the model");
+    }
+
     // A conv "<prefix>.weight" [out, in, size, size] + "<prefix>.bias" [out] whose input count
     // must be `in` (-1: any).
     // `upsampled` > 0: the layer reads that many channels of a coarser level upsampled.
@@ -127,11 +135,9 @@ Network buildNetwork(const Weights& weights, Precision precision) {
     n.tapSize = b.config("config.kernel_size", 1, 15);
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
     n.albedoDemodulation = b.flag("config.albedo_demodulation");
-    n.sourceWeights = b.flag("config.source_weights");
     n.emissionBypass = b.flag("config.emission_bypass");
-    n.emissionLambda = b.flag("config.emission_lambda");
-    if (n.emissionLambda && !n.emissionBypass)
-        b.fail("config.emission_lambda needs config.emission_bypass: only bypassed emission has its own lambda");
+    b.removedFlag("config.source_weights", "source weights");
+    b.removedFlag("config.emission_lambda", "separate emission lambdas");
 
     std::vector<DenseLayer> dense = b.embedding();
     n.embeddingWidths.push_back(dense.front().in);
@@ -156,9 +162,8 @@ Network buildNetwork(const Weights& weights, Precision precision) {
     }
     n.head.emplace(b.conv("unet.head", channels, 1));
     if (n.head->outChannels() != n.headChannels())
-        b.fail("'unet.head.weight' has " + std::to_string(n.head->outChannels()) + " outputs but K = " +
-               std::to_string(n.kernels) + ", F = " + std::to_string(n.affinityFeatures) +
-               (n.sourceWeights ? " with source weights" : "") + (n.emissionLambda ? " with an emission lambda" : "") +
+        b.fail("'unet.head.weight' has " + std::to_string(n.head->outChannels()) +
+               " outputs but K = " + std::to_string(n.kernels) + ", F = " + std::to_string(n.affinityFeatures) +
                " needs " + std::to_string(n.headChannels()));
     n.parameterCount = b.parameters();
     b.requireAllUsed();

@@ -23,18 +23,17 @@ struct Network {
     std::vector<std::vector<Conv2d>> decoder;  // [level][conv], level 0 = full resolution
     std::optional<Conv2d> head;                // 1x1 convolution to headChannels()
     int kernels = 3, affinityFeatures = 8, tapSize = 5;
+    // Kept although no shipped model uses them: Cycles fine-tunes with both are being trained
+    // (core/models/small_demod_bypass.affw and its parity test hold them to the trainer).
     bool albedoDemodulation = false;  // the kernels filter diffuse / albedo and specular
-    bool sourceWeights = false;       // each kernel weighs a neighbour q by a learned s(q)
     bool emissionBypass = false;      // emissive samples are accumulated but not filtered
-    bool emissionLambda = false;      // bypassed emission accumulates with its own learned lambda
     std::int64_t parameterCount = 0;
     Precision precision = Precision::Float32;  // of the convolutions' products (affinity/precision.h)
 
-    // Head channels per kernel: features, bandwidth, centre weight (and source weight).
-    int kernelChannels() const { return affinityFeatures + (sourceWeights ? 3 : 2); }
-    // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda), + 1 with an
-    // emission lambda.
-    int headChannels() const { return kernels * kernelChannels() + 2 + (emissionLambda ? 1 : 0); }
+    // Head channels per kernel: features, bandwidth, centre weight.
+    int kernelChannels() const { return affinityFeatures + 2; }
+    // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda).
+    int headChannels() const { return kernels * kernelChannels() + 2; }
     // Where the filtered and the only accumulated channels sit (core/src/filter_signal.h).
     SignalLayout signalLayout() const { return SignalLayout{albedoDemodulation, emissionBypass}; }
 };

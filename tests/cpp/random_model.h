@@ -18,9 +18,7 @@ struct ModelShape {
     int bottleneck = 16;
     int kernels = 3, affinityFeatures = 4, tapSize = 5;
     bool albedoDemodulation = false;
-    bool sourceWeights = false;
     bool emissionBypass = false;
-    bool emissionLambda = false;  // needs emissionBypass
 };
 
 inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shape, unsigned seed,
@@ -44,9 +42,7 @@ inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shap
     config("config.affinity_features", shape.affinityFeatures);
     config("config.kernel_size", shape.tapSize);
     if (shape.albedoDemodulation) config("config.albedo_demodulation", 1);
-    if (shape.sourceWeights) config("config.source_weights", 1);
     if (shape.emissionBypass) config("config.emission_bypass", 1);
-    if (shape.emissionLambda) config("config.emission_lambda", 1);
     int in = 18;
     for (std::size_t i = 0; i < shape.embedding.size(); ++i) {
         add("embed." + std::to_string(i) + ".weight", {shape.embedding[i], in}, in);
@@ -72,8 +68,8 @@ inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shap
         add(p + ".bias", {shape.encoder[l]}, 9 * inputs);
         in = shape.encoder[l];
     }
-    const int lambda = shape.kernels * (shape.affinityFeatures + (shape.sourceWeights ? 3 : 2)) + 1;
-    const int head = lambda + 1 + (shape.emissionLambda ? 1 : 0);
+    const int lambda = shape.kernels * (shape.affinityFeatures + 2) + 1;
+    const int head = lambda + 1;
     add("unet.head.weight", {head, in, 1, 1}, in);
     add("unet.head.bias", {head}, in);
     tensors.back().floats[std::size_t(lambda - 1)] += headBiasTemporal;

@@ -44,9 +44,9 @@ bool bitwiseEqual(const FeatureMap& a, const FeatureMap& b) {
 
 // All inputs of one filter call.
 struct Scene {
-    FeatureMap radiance, features, bandwidth, centre, source;  // source: empty = no source weights
+    FeatureMap radiance, features, bandwidth, centre;
     FeatureMap temporalBandwidth, warpedOutput, warpedFeatures, warpedValid;
-    KernelParams kernel() const { return {&features, &bandwidth, &centre, source.empty() ? nullptr : &source}; }
+    KernelParams kernel() const { return {&features, &bandwidth, &centre}; }
 };
 
 // Features in [0, 1], a in [-2, 2] (so a^2 ||df||^2 stays in the range where weights are not
@@ -92,10 +92,9 @@ FeatureMap reference(const Scene& s, int tapSize, int dilation, bool temporal) {
                 for (int i = -radius; i <= radius; ++i) {
                     const int qx = x + dilation * i, qy = y + dilation * j;
                     if (qx < 0 || qy < 0 || qx >= width || qy >= height) continue;
-                    const double sourceWeight = s.source.empty() ? 1.0 : double(s.source.pixel(qy, qx)[0]);
-                    const double w = (i == 0 && j == 0) ? double(s.centre.pixel(y, x)[0])
-                                                        : sourceWeight * std::exp(-a * a * squaredDistance(
-                                                                                      s.features, y, x, s.features, qy, qx));
+                    const double w = (i == 0 && j == 0)
+                                         ? double(s.centre.pixel(y, x)[0])
+                                         : std::exp(-a * a * squaredDistance(s.features, y, x, s.features, qy, qx));
                     for (int c = 0; c < channels; ++c) sum[std::size_t(c)] += w * s.radiance.pixel(qy, qx)[c];
                     weights += w;
                 }
@@ -264,38 +263,6 @@ TEST(AffinityFilter, DemodulatedSixChannelSignalMatchesReference) {
             for (int c = 0; c < 3; ++c) ASSERT_EQ(outSix.pixel(y, x)[c], outThree.pixel(y, x)[c]);
 }
 
-TEST(AffinityFilter, SourceWeightsMatchReference) {
-    std::mt19937 rng(5);
-    for (const Size size : kSizes) {
-        for (const bool temporal : {false, true}) {
-            for (const int channels : {3, 6}) {
-                Scene s = randomScene(size.height, size.width, 8, rng, channels);
-                s.source = randomMap(size.height, size.width, 1, 0.0f, 1.0f, rng);
-                const double difference = maxRelativeDifference(run(s, 5, 2, temporal), reference(s, 5, 2, temporal));
-                EXPECT_LT(difference, 1e-5) << size.height << "x" << size.width << " temporal=" << temporal
-                                            << " channels=" << channels;
-            }
-        }
-    }
-}
-
-TEST(AffinityFilter, ZeroSourceWeightKeepsAFireflyOutOfItsNeighbours) {
-    // Constant radiance 1 with one pixel at 1000: with s = 0 there no other pixel sees it, and
-    // with its own centre weight c = 0 it takes its neighbours' value.
-    Scene s;
-    s.radiance = constantMap(9, 9, 3, 1.0f);
-    for (int c = 0; c < 3; ++c) s.radiance.pixel(4, 4)[c] = 1000.0f;
-    s.features = constantMap(9, 9, 8, 0.5f);
-    s.bandwidth = constantMap(9, 9, 1, 0.0f);
-    s.centre = constantMap(9, 9, 1, 1.0f);
-    s.centre.pixel(4, 4)[0] = 0.0f;
-    s.source = constantMap(9, 9, 1, 1.0f);
-    s.source.pixel(4, 4)[0] = 0.0f;
-    FeatureMap out;
-    affinityFilter(s.radiance, s.kernel(), 5, 1, out);
-    for (std::size_t i = 0; i < out.size(); ++i) EXPECT_NEAR(out.data()[i], 1.0f, 1e-6f) << i;
-}
-
 TEST(AffinityFilter, ZeroBandwidthAndUnitCentreIsAnExactBoxFilter) {
     std::mt19937 rng(4);
     std::uniform_int_distribution<int> integers(0, 100);
@@ -425,9 +392,8 @@ TEST(AffinityFilter, TemporalWithoutValidHistoryEqualsSpatial) {
 
 TEST(AffinityFilter, InstructionSetsAgreeBitwise) {
     // The reference tests run the default (widest) strips; this holds the 8-lane strips to the
-    // 16-lane ones bit for bit, spatial and temporal, radiance and demodulated signals, source
-    // weights, widths that end inside a strip of either width, specialised and generic
-    // feature counts.
+    // 16-lane ones bit for bit, spatial and temporal, radiance and demodulated signals, widths
+    // that end inside a strip of either width, specialised and generic feature counts.
     if (!cpuHasAvx512()) GTEST_SKIP() << "this CPU has no AVX-512: only the 8-lane strips run here";
     std::mt19937 rng(31);
     for (const Size size : {Size{9, 200}, Size{5, 129}, Size{3, 7}})
@@ -438,7 +404,6 @@ TEST(AffinityFilter, InstructionSetsAgreeBitwise) {
                                  std::to_string(features) + " C=" + std::to_string(channels) +
                                  (temporal ? " temporal" : ""));
                     Scene s = randomScene(size.height, size.width, features, rng, channels);
-                    if (features == 3) s.source = randomMap(size.height, size.width, 1, 0.0f, 1.0f, rng);
                     const TemporalTaps taps{&s.temporalBandwidth, &s.warpedOutput, &s.warpedFeatures,
                                             &s.warpedValid};
                     FeatureMap narrow(size.height, size.width, channels), wide(size.height, size.width, channels);

@@ -101,6 +101,34 @@ TEST(Denoiser, InconsistentWeightsAreRejectedWithTheTensorName) {
     EXPECT_THROW(Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "extra.affw")), Error);
 }
 
+// Switches of variants that were removed (docs/TRAINING.md, "Tried and lost"): a file that turns
+// one on is refused with the switch's name instead of being read as a different model; off (0)
+// is the model this code computes and loads.
+TEST(Denoiser, WeightsWithARemovedSwitchOnAreRefusedNamingIt) {
+    for (const char* removed : {"config.source_weights", "config.emission_lambda"}) {
+        SCOPED_TRACE(removed);
+        test::ModelShape shape;
+        shape.emissionBypass = true;  // an emission lambda needed it
+        auto tensors = test::randomModelTensors(shape, 1);
+        tensors.push_back({removed, DType::Int32, {1}, {}, {1}});
+        auto bytes = train::serializeWeights(tensors);
+        try {
+            Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "old.affw"));
+            ADD_FAILURE() << "accepted a model with " << removed << " = 1";
+        } catch (const Error& e) {
+            EXPECT_NE(std::string(e.what()).find("old.affw"), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find(std::string(removed) + " = 1"), std::string::npos) << e.what();
+            EXPECT_NE(std::string(e.what()).find("removed"), std::string::npos) << e.what();
+        }
+        tensors.back().ints = {0};
+        bytes = train::serializeWeights(tensors);
+        const Weights off = Weights::fromMemory(bytes.data(), bytes.size(), "off.affw");
+        Denoiser withSwitchOff(Model::fromWeights(off)), plain(Model::fromWeights(test::randomWeights(shape, 1)));
+        for (const SampleFrame& frame : test::randomSequence(2, 9, 7, 2, 5))
+            EXPECT_EQ(withSwitchOff.denoise(frame), plain.denoise(frame));
+    }
+}
+
 TEST(Denoiser, OutputDoesNotDependOnSampleOrder) {
     auto frames = test::randomSequence(3, 16, 12, 4, 9);
     auto permuted = frames;

@@ -126,15 +126,16 @@ TEST(ModelOptions, EachFlagSetsItsSwitchAndPresetsCarryThem) {
     EXPECT_FALSE(options.parseFlag("--albedo"));
     EXPECT_FALSE(options.parseFlag("--fresh"));
     EXPECT_TRUE(options.parseFlag("--emission-bypass"));
-    EXPECT_TRUE(!options.albedoDemodulation && !options.sourceWeights && options.emissionBypass);
-    EXPECT_TRUE(options.parseFlag("--source-weights"));
-    EXPECT_TRUE(!options.albedoDemodulation && options.sourceWeights);
+    EXPECT_TRUE(!options.albedoDemodulation && options.emissionBypass);
+    // Switches of removed variants are unknown flags (the trainer then rejects them).
+    EXPECT_FALSE(options.parseFlag("--source-weights"));
+    EXPECT_FALSE(options.parseFlag("--emission-lambda"));
     EXPECT_TRUE(options.parseFlag("--albedo-demodulation"));
     const ModelConfig config = presetConfig("tiny", options);
-    EXPECT_TRUE(config.albedoDemodulation && config.sourceWeights && config.emissionBypass);
-    EXPECT_EQ(config.headChannels(), 3 * (8 + 3) + 2);
+    EXPECT_TRUE(config.albedoDemodulation && config.emissionBypass);
+    EXPECT_EQ(config.headChannels(), 3 * (8 + 2) + 2);
     const ModelConfig plain = presetConfig("tiny");
-    EXPECT_FALSE(plain.albedoDemodulation || plain.sourceWeights || plain.emissionBypass);
+    EXPECT_FALSE(plain.albedoDemodulation || plain.emissionBypass);
     EXPECT_EQ(plain.embedWidths, config.embedWidths);
 }
 
@@ -233,9 +234,16 @@ TEST(TorchModel, InconsistentWeightsAreRejected) {
         tensors.push_back({option, DType::Int32, {1}, {}, {2}});  // a switch is 0 or 1
         rejects(tensors, std::string(option) + " is 2, expected 0 or 1");
     }
-    tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
-    tensors.push_back({"config.emission_lambda", DType::Int32, {1}, {}, {1}});
-    rejects(tensors, "an emission lambda needs emission bypass");
+    // A removed variant's switch turned on is refused by name, not read as a different model
+    // (docs/TRAINING.md, "Tried and lost"); turned off it is the model itself.
+    for (const char* removed : {"config.source_weights", "config.emission_lambda"}) {
+        tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
+        tensors.push_back({removed, DType::Int32, {1}, {}, {1}});
+        rejects(tensors, std::string(removed) + " = 1: ");
+        tensors.back().ints = {0};
+        const std::vector<std::uint8_t> bytes = serializeWeights(tensors);
+        EXPECT_NO_THROW(configFromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "off.affw"))) << removed;
+    }
 }
 
 TEST(TorchModel, ToolFacadeWritesTheSameModelForTheSameSeed) {
@@ -330,7 +338,6 @@ torch::Tensor directFilter(const torch::Tensor& L, const KernelParams& k, int ta
                             d2 += d * d;
                         }
                         w = std::exp(-a * a * d2);
-                        if (k.source.defined()) w *= k.source[0][0][qy][qx].item<double>();
                     }
                     add(w, L, qy, qx);
                 }
@@ -360,15 +367,13 @@ struct FilterInputs {
     TemporalTaps temporal;
 };
 
-// C signal channels (3: radiance, 6: demodulated); with source weights s in (0, 1).
-FilterInputs randomFilterInputs(std::int64_t H, std::int64_t W, std::int64_t F, std::int64_t C = 3,
-                                bool sourceWeights = false) {
+// C signal channels (3: radiance, 6: demodulated).
+FilterInputs randomFilterInputs(std::int64_t H, std::int64_t W, std::int64_t F, std::int64_t C = 3) {
     const auto o = torch::TensorOptions().dtype(torch::kDouble);
     FilterInputs in;
     in.radiance = leaf(torch::rand({1, C, H, W}, o) * 2);
     in.kernel = {leaf(torch::randn({1, F, H, W}, o) * 0.5), leaf(torch::randn({1, 1, H, W}, o)),
-                 leaf(torch::rand({1, 1, H, W}, o)),
-                 sourceWeights ? leaf(torch::rand({1, 1, H, W}, o)) : torch::Tensor()};
+                 leaf(torch::rand({1, 1, H, W}, o))};
     in.temporal = {leaf(torch::randn({1, 1, H, W}, o)), leaf(torch::rand({1, C, H, W}, o) * 2),
                    leaf(torch::randn({1, F, H, W}, o) * 0.5), (torch::rand({1, 1, H, W}, o) < 0.7).to(torch::kDouble)};
     return in;
@@ -376,9 +381,9 @@ FilterInputs randomFilterInputs(std::int64_t H, std::int64_t W, std::int64_t F, 
 
 TEST(TorchOps, AffinityFiltersMatchTheFormulas) {
     torch::manual_seed(2);
-    for (int variant = 0; variant < 3; ++variant) {
-        // Radiance; a demodulated six-channel signal; six channels with source weights.
-        const FilterInputs in = randomFilterInputs(7, 9, 3, variant == 0 ? 3 : 6, variant == 2);
+    for (int variant = 0; variant < 2; ++variant) {
+        // Radiance; a demodulated six-channel signal.
+        const FilterInputs in = randomFilterInputs(7, 9, 3, variant == 0 ? 3 : 6);
         for (int dilation : {1, 2, 4, 8}) {
             torch::NoGradGuard noGrad;
             EXPECT_LT(maxAbsDiff(affinityFilter(in.radiance, in.kernel, 5, dilation),
@@ -623,15 +628,15 @@ TEST(TorchGradients, AffinityKernel) {
     expectGradientMatches(loss, in.kernel.centre, someIndices(in.kernel.centre.numel()), "affinity: centre");
 }
 
-TEST(TorchGradients, AffinityKernelWithSourceWeightsOnASixChannelSignal) {
+TEST(TorchGradients, TemporalKernelOnASixChannelSignal) {
     torch::manual_seed(15);
-    const FilterInputs in = randomFilterInputs(6, 7, 3, 6, true);
+    const FilterInputs in = randomFilterInputs(6, 7, 3, 6);
     const torch::Tensor weights = torch::randn({1, 6, 6, 7}, torch::kDouble);
     auto loss = [&] { return (affinityFilterTemporal(in.radiance, in.kernel, 5, 2, in.temporal) * weights).sum(); };
-    expectGradientMatches(loss, in.radiance, someIndices(in.radiance.numel()), "source: signal");
-    expectGradientMatches(loss, in.kernel.features, someIndices(in.kernel.features.numel()), "source: features");
-    expectGradientMatches(loss, in.kernel.source, someIndices(in.kernel.source.numel()), "source: s");
-    expectGradientMatches(loss, in.temporal.output, someIndices(in.temporal.output.numel()), "source: warped output");
+    expectGradientMatches(loss, in.radiance, someIndices(in.radiance.numel()), "six channels: signal");
+    expectGradientMatches(loss, in.kernel.features, someIndices(in.kernel.features.numel()), "six channels: features");
+    expectGradientMatches(loss, in.temporal.output, someIndices(in.temporal.output.numel()),
+                          "six channels: warped output");
 }
 
 TEST(TorchGradients, TemporalKernel) {
@@ -673,10 +678,9 @@ TEST(TorchGradients, WholePipelineOverTwoFrames) {
     expectGradientMatches(loss, frames[0].samples, sampleIndices, "pipeline: frame 1 samples");
 }
 
-TEST(TorchGradients, DemodulatedPipelineWithSourceWeightsOverTwoFrames) {
+TEST(TorchGradients, DemodulatedPipelineOverTwoFrames) {
     ModelConfig config = presetConfig("tiny");
     config.albedoDemodulation = true;
-    config.sourceWeights = true;
     AffinityModel model = makeModel(config, 16);
     model->to(torch::kDouble);
     torch::manual_seed(16);

@@ -29,8 +29,7 @@ namespace {
 
 // Every term switched on, with weights unlike the defaults, so the gradient check covers them all.
 // Coarse cells of 2 pixels on 4 x 3 images: the right column is a partial cell.
-const train::LossWeights kAllTerms{0.5, 0.3, true, 0.7, 2, false, 0.4};
-const train::LossWeights kAllTermsBounded{0.5, 0.3, true, 0.7, 2, true, 0.4};
+const train::LossWeights kAllTerms{0.5, 0.3, true, 0.7, 2};
 
 double lossValue(const std::vector<torch::Tensor>& outputs, const std::vector<torch::Tensor>& references,
                  const std::vector<std::vector<torch::Tensor>>& bandwidths,
@@ -120,42 +119,6 @@ TEST(TrainingLoss, AbsoluteTemporalTermWeighsFlickerBySizePerCropBrightness) {
                 1e-6);
 }
 
-TEST(TrainingLoss, BoundedAbsoluteTemporalTermCountsEachPixelAgainstItsOwnBrightness) {
-    // FlickerCrops. Crop 0 (uniform): every pixel's reference is the mean, so
-    // each counts 0.5 / (1.5 + 1.5 + 0.01). Crop 1: the lamp's flicker of 20 counts against its
-    // own 100 plus the crop's mean of 25, in one of 4 pixels (all 3 channels).
-    train::LossWeights bounded{0.25, 2.0};
-    bounded.boundedAbsoluteTemporal = true;
-    const train::LossTerms terms = FlickerCrops().loss(bounded);
-    const double crop0 = 0.5 / (1.5 + 1.5 + 0.01);
-    const double crop1 = (20.0 / (100.0 + 25.0 + 0.01)) / 4;  // 0.04; the plain form's 0.2
-    EXPECT_NEAR(terms.absoluteTemporal.item<double>(), (crop0 + crop1) / 2, 1e-6);
-    EXPECT_NEAR(terms.total.item<double>(),
-                terms.spatial.item<double>() + 0.25 * terms.temporal.item<double>() +
-                    2.0 * terms.absoluteTemporal.item<double>(),
-                1e-6);
-}
-
-TEST(TrainingLoss, AbsoluteSpatialTermChargesAHaloByTheLightItMoves) {
-    // A 2 x 2 crop whose reference is a lamp of 100 in one pixel and 0 elsewhere. The output
-    // keeps 64 in the lamp's pixel and spreads 12 onto each neighbour (a halo): per channel
-    // |O - O*| sums to 36 + 3 x 12 = 72 over 4 pixels, against a mean reference of 25.
-    torch::Tensor reference = torch::zeros({1, 3, 2, 2}), halo = torch::full({1, 3, 2, 2}, 12.0);
-    reference.select(2, 0).select(2, 0).fill_(100.0);
-    halo.select(2, 0).select(2, 0).fill_(64.0);
-    train::LossWeights weights{0.25, 0.0};
-    weights.absoluteSpatial = 0.5;
-    const train::LossTerms terms = train::sequenceLoss({halo}, {reference}, {}, weights);
-    EXPECT_NEAR(terms.absoluteSpatial.item<double>(), (72.0 / 4) / (25.0 + 0.01), 1e-6);
-    // SMAPE counts each halo pixel at most once, whatever light it holds.
-    const double smape = (36.0 / 164.01 + 3 * 12.0 / 12.01) / 4;
-    EXPECT_NEAR(terms.spatial.item<double>(), smape, 1e-6);
-    EXPECT_NEAR(terms.total.item<double>(), smape + 0.5 * terms.absoluteSpatial.item<double>(), 1e-6);
-    // Off by default, and zero for a perfect output.
-    EXPECT_EQ(train::sequenceLoss({halo}, {reference}, {}).absoluteSpatial.item<double>(), 0.0);
-    EXPECT_NEAR(train::sequenceLoss({reference}, {reference}, {}, weights).absoluteSpatial.item<double>(), 0.0, 1e-12);
-}
-
 TEST(TrainingLoss, WarpedTemporalTermsWithoutMotionEqualThePlainOnes) {
     torch::manual_seed(4);
     std::vector<torch::Tensor> outputs, references;
@@ -206,17 +169,8 @@ TEST(TrainingLoss, WarpedTemporalTermsIgnoreMotionAndCountOnlyPixelsWithHistory)
     EXPECT_NEAR(one.temporal.item<double>(), 3 * (1.0 / 1.01) / (3 * 19.0), 1e-5);
 }
 
-// Names the parameter in test listings (gtest prints a struct's raw bytes otherwise).
-namespace affinity::train {
-void PrintTo(const LossWeights& weights, std::ostream* out) {
-    *out << (weights.boundedAbsoluteTemporal ? "bounded" : "plain") << " absolute temporal term";
-}
-}  // namespace affinity::train
-
-class TrainingLossGradient : public testing::TestWithParam<train::LossWeights> {};
-
-TEST_P(TrainingLossGradient, MatchesFiniteDifferences) {
-    const train::LossWeights& weights = GetParam();
+TEST(TrainingLossGradient, MatchesFiniteDifferences) {
+    const train::LossWeights& weights = kAllTerms;
     torch::manual_seed(5);
     const auto options = torch::TensorOptions().dtype(torch::kDouble);
     std::vector<torch::Tensor> outputs, references;
@@ -250,11 +204,6 @@ TEST_P(TrainingLossGradient, MatchesFiniteDifferences) {
     for (auto& frame : bandwidths)
         for (auto& tensor : frame) check(tensor);
 }
-
-INSTANTIATE_TEST_SUITE_P(EveryTerm, TrainingLossGradient, testing::Values(kAllTerms, kAllTermsBounded),
-                         [](const testing::TestParamInfo<train::LossWeights>& test) {
-                             return test.param.boundedAbsoluteTemporal ? "BoundedAbsolute" : "PlainAbsolute";
-                         });
 
 // Augmentation keeps the physics: warping the transformed previous frame with the transformed
 // motion gives the transformed warp, for all 8 rotations / reflections with a colour permutation.
@@ -290,28 +239,6 @@ TEST(TrainingAugmentation, WarpCommutesWithEveryTransform) {
     }
 }
 
-// Each count's share of 30,000 draws against its probability: 1/15 each (uniform), and
-// log((s + 1) / s) / log(17 / 2) log-uniformly, so that 2-8 spp get 70 % of the steps.
-TEST(TrainingOptions, BatchSppIsDrawnUniformlyOrLogUniformly) {
-    constexpr int kDraws = 30000;
-    for (const bool logUniform : {false, true}) {
-        std::mt19937_64 rng(5);
-        std::vector<int> counts(17, 0);
-        for (int i = 0; i < kDraws; ++i) {
-            const int spp = train::drawBatchSpp(2, 16, logUniform, rng);
-            ASSERT_GE(spp, 2);
-            ASSERT_LE(spp, 16);
-            ++counts[std::size_t(spp)];
-        }
-        for (int s = 2; s <= 16; ++s) {
-            const double expected = logUniform ? std::log((s + 1.0) / s) / std::log(17.0 / 2.0) : 1.0 / 15.0;
-            EXPECT_NEAR(counts[std::size_t(s)] / double(kDraws), expected, 0.008) << "spp " << s << " log " << logUniform;
-        }
-    }
-    std::mt19937_64 rng(6);
-    for (int i = 0; i < 100; ++i) EXPECT_EQ(train::drawBatchSpp(4, 4, true, rng), 4);
-}
-
 // runTraining(options) throws affinity::Error whose message contains `words`.
 static void expectRejectedNaming(const train::TrainOptions& options, const std::string& words) {
     try {
@@ -333,9 +260,6 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
         options.loss.absoluteTemporal = bad;
         EXPECT_THROW(train::runTraining(options), Error);
         options.loss.absoluteTemporal = 0;
-        options.loss.absoluteSpatial = bad;
-        EXPECT_THROW(train::runTraining(options), Error);
-        options.loss.absoluteSpatial = 0;
         options.loss.coarse = bad;
         EXPECT_THROW(train::runTraining(options), Error);
         options.loss.coarse = 0;
