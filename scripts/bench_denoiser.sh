@@ -28,10 +28,8 @@ export OMP_WAIT_POLICY=passive
 # bit for bit: the rows show what the wider kernel buys on this machine, in the same run); bf16
 # takes the convolutions' products in bfloat16 (affinity/precision.h; CPUs with AVX512-BF16).
 models=("tiny=$root/core/models/tiny.affw" "small=")
-# The other trained rungs of the model ladder (docs/TRAINING.md), where they are in the checkout.
-for rung in small-e16 medium; do
-  [ -f "$root/core/models/${rung/-/_}.affw" ] && models+=("$rung=$root/core/models/${rung/-/_}.affw")
-done
+# The ladder's largest trained rung (docs/TRAINING.md), where it is in the checkout.
+[ -f "$root/core/models/medium.affw" ] && models+=("medium=$root/core/models/medium.affw")
 models+=("tiny lent=$root/core/models/tiny.affw=lend" "small lent==lend")
 models+=("tiny streamed=$root/core/models/tiny.affw=stream" "small streamed==stream")
 if grep -q avx512f /proc/cpuinfo 2>/dev/null; then

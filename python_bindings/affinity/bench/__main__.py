@@ -69,7 +69,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                         help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model, PATH:bf16 the "
                              "model with bfloat16 products (CPUs with AVX512-BF16). The first "
                              "one's ablations run too. Default: small=builtin and the ladder's other models in "
-                             "<source>/core/models (tiny, small-e16, medium)")
+                             "<source>/core/models (tiny, medium)")
     parser.add_argument("--methods", help="comma-separated method labels to run (default: all)")
     parser.add_argument("--sequences", help="comma-separated sequence names to run (default: the config's)")
     parser.add_argument("--spp", type=parse_spp_list, metavar="S,...",
@@ -91,8 +91,8 @@ def default_models(notice: Callable[[str], None]) -> list[tuple[str, str]]:
     models = [("small", BUILT_IN)]
     source = find_source_dir()
     # The other trained rungs of the model ladder (docs/TRAINING.md), smallest first.
-    for label in ("tiny", "small-e16", "medium"):
-        file = f"core/models/{label.replace('-', '_')}.affw"
+    for label in ("tiny", "medium"):
+        file = f"core/models/{label}.affw"
         if source and (source / file).is_file():
             models.append((label, str(source / file)))
         else:
