@@ -58,6 +58,38 @@ FEATURE_COUNT: int = _core.FEATURE_COUNT
 MAX_SPP: int = _core.MAX_SPP
 
 
+def _version() -> str:
+    """The version of this build: one source, the ``project(affinity VERSION ...)`` line of the
+    top-level CMakeLists.txt, which pyproject.toml reads for the wheel's metadata.
+
+    An installed wheel: the metadata beside this package (only there: an unrelated PyPI project
+    is also called ``affinity``). A build tree (``<build>/python/affinity``): CMakeLists.txt of
+    the source folder that ``<build>/CMakeCache.txt`` names. Otherwise "0+unknown"."""
+    import re
+    from importlib import metadata
+
+    package = os.path.dirname(os.path.abspath(__file__))
+    for distribution in metadata.distributions(path=[os.path.dirname(package)]):
+        if (distribution.metadata["Name"] or "").lower() == "affinity":
+            return distribution.version
+    try:
+        with open(os.path.join(package, "..", "..", "CMakeCache.txt"), encoding="utf-8") as handle:
+            source = re.search(r"^affinity_SOURCE_DIR:\w+=(.*)$", handle.read(), re.MULTILINE)
+        if source:
+            with open(os.path.join(source.group(1), "CMakeLists.txt"), encoding="utf-8") as handle:
+                version = re.search(r"project\(affinity VERSION ([0-9.]+)", handle.read())
+            if version:
+                return version.group(1)
+    except OSError:
+        pass
+    return "0+unknown"
+
+
+#: The version of this build, e.g. "0.1.0" (the wheel's version; in a build tree, the
+#: CMake project's).
+__version__: str = _version()
+
+
 def read_frame(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Reads a frame file into a frame dict (see the module docstring).
 

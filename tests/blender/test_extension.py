@@ -151,6 +151,7 @@ with open("/proc/self/maps") as handle:
     exr = sorted({line.split()[-1] for line in handle if "libOpenEXR" in line})
 print(json.dumps({
     "affinity": affinity.__file__,
+    "version": affinity.__version__,
     "core": affinity._core.__file__,
     "numpy": np.__version__,
     "same_samples": bool(np.array_equal(back["samples"], samples)),
@@ -177,6 +178,7 @@ def test_the_wheel_alone_reads_writes_and_denoises(tmp_path: Any) -> None:
     assert result.returncode == 0, result.stdout + result.stderr
     report = json.loads(result.stdout.strip().splitlines()[-1])
     assert report["affinity"] == str(site / "affinity" / "__init__.py")
+    assert report["version"] == _cmake_project_version()  # from the wheel's metadata
     assert report["core"].startswith(str(site / "affinity" / "_core.cpython-311-"))
     assert report["numpy"].startswith("1.26.")  # bpy's numpy; the main venv has numpy 2
     assert report["same_samples"]
@@ -202,7 +204,6 @@ assert bpy.ops.extensions.package_install_files(
     filepath=archive, repo="user_default", enable_on_install=True) == {"FINISHED"}
 scene = bpy.context.scene
 scene.render.filepath = os.path.join(out, "frame_")
-scene.affinity_denoiser.enabled = True
 scene.affinity_denoiser.samples_per_frame = 2
 scene.frame_set(1)
 assert bpy.ops.affinity_denoiser.render_frame() == {"FINISHED"}

@@ -321,3 +321,18 @@ def test_a_denoiser_cannot_be_copied(copy_call: Callable[[Any], Any]) -> None:
     """Issue 42, item 12: copy.copy shared the native history between two objects."""
     with pytest.raises(TypeError, match="cannot be copied or pickled"):
         copy_call(affinity.Denoiser())
+
+
+def test_the_module_reports_its_version() -> None:
+    """Issue 40, item 5: ``affinity.__version__`` is the version the wheel is built with: the
+    CMake project version, which pyproject.toml reads with its own regex (one source of truth)."""
+    import re
+    import tomllib
+
+    root = pathlib.Path(__file__).parents[2]
+    with open(root / "pyproject.toml", "rb") as handle:
+        (rule,) = tomllib.load(handle)["tool"]["dynamic-metadata"]
+    assert rule["field"] == "version"
+    match = re.search(rule["regex"], (root / rule["input"]).read_text(encoding="utf-8"))
+    assert match is not None
+    assert affinity.__version__ == match.group("value")
