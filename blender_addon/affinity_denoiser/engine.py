@@ -2,10 +2,10 @@
 
 In background mode ``bpy.data.images['Render Result']`` has no pixels, and writing a
 multilayer EXR per sub-render and reading it back is slower (docs/BLENDER.md, "Reading
-passes"). A subclass of Cycles' own engine class can read every pass of its result right after
-Cycles finishes a frame. The same engine can also *present* a frame: instead of rendering, it
-fills the render result with given passes (the denoised image as Combined), so that Blender's
-compositor and file output run on the denoised frame.
+passes"). An engine that runs Cycles' own engine code can read every pass of its result right
+after Cycles finishes a frame. The same engine can also *present* a frame: instead of
+rendering, it fills the render result with given passes (the denoised image as Combined), so
+that Blender's compositor and file output run on the denoised frame.
 
 The pipeline switches the scene to this engine for the duration of a denoise-render only.
 """
@@ -64,38 +64,71 @@ def _write_result(engine: Any, width: int, height: int, frame: dict[str, np.ndar
         engine.end_result(result)
 
 
+#: What Cycles' engine class holds besides its methods; everything else of it is copied.
+_NOT_COPIED = {"__module__", "__qualname__", "__doc__", "__dict__", "__weakref__", "__init__",
+               "bl_idname", "bl_label", "bl_rna"}
+
+
 def _make_engine_class() -> type:
+    """A RenderEngine that runs Cycles' own engine code, with our hooks around it.
+
+    It is *not* a subclass of ``cycles.CyclesRender``: registering a subclass of a registered
+    class takes the base class off its RNA type (Blender's ``pyrna_register_class``), after
+    which every call into the real Cycles engine failed with "unable to get Python class for
+    RNA struct 'CYCLES'" and plain Cycles renders came out black, even after unregistering.
+    Instead the class derives from ``bpy.types.RenderEngine`` and copies Cycles' methods and
+    ``bl_use_*`` flags; those call ``cycles.engine`` with the engine instance, whatever its
+    class."""
+    import bpy
     import cycles  # Blender's bundled Cycles add-on
 
-    class AffinityCyclesEngine(cycles.CyclesRender):
-        """Cycles with in-memory pass capture (internal to the Affinity Denoiser)."""
+    namespace: dict[str, Any] = {}
+    for name, value in vars(cycles.CyclesRender).items():
+        if name in _NOT_COPIED:
+            continue
+        if callable(value) and "__class__" in getattr(getattr(value, "__code__", None),
+                                                       "co_freevars", ()):
+            # Zero-argument super() would need a CyclesRender instance.
+            raise RuntimeError(f"cycles.CyclesRender.{name} uses super(): cannot be reused")
+        namespace[name] = value
+    cycles_methods = dict(namespace)
 
-        bl_idname = IDNAME
-        bl_label = "Cycles (Affinity Denoiser capture)"
+    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
+        bpy.types.RenderEngine.__init__(self, *args, **kwargs)
+        self.session = None
 
-        def update(self, data: Any, depsgraph: Any) -> None:
-            if session.present is None:
-                super().update(data, depsgraph)
+    def update(self: Any, data: Any, depsgraph: Any) -> None:
+        if session.present is None:
+            cycles_methods["update"](self, data, depsgraph)
 
-        def render(self, depsgraph: Any) -> None:
-            if session.present is not None:
-                scene = depsgraph.scene
-                scale = scene.render.resolution_percentage / 100.0
-                width = int(scene.render.resolution_x * scale)
-                height = int(scene.render.resolution_y * scale)
-                _write_result(self, width, height, session.present)
-                return
-            super().render(depsgraph)
+    def render(self: Any, depsgraph: Any) -> None:
+        if session.present is not None:
+            scene = depsgraph.scene
+            scale = scene.render.resolution_percentage / 100.0
+            width = int(scene.render.resolution_x * scale)
+            height = int(scene.render.resolution_y * scale)
+            _write_result(self, width, height, session.present)
+            return
+        cycles_methods["render"](self, depsgraph)
 
-        def render_frame_finish(self) -> None:
-            if session.present is not None:
-                return
-            # Cycles completes tiled results here, so the result is read afterwards.
-            super().render_frame_finish()
-            if session.sink is not None and not self.test_break():
-                session.sink(self.get_result())
+    def render_frame_finish(self: Any) -> None:
+        if session.present is not None:
+            return
+        # Cycles completes tiled results here, so the result is read afterwards.
+        cycles_methods["render_frame_finish"](self)
+        if session.sink is not None and not self.test_break():
+            session.sink(self.get_result())
 
-    return AffinityCyclesEngine
+    namespace.update(
+        __init__=__init__,
+        update=update,
+        render=render,
+        render_frame_finish=render_frame_finish,
+        __doc__="Cycles with in-memory pass capture (internal to the Affinity Denoiser).",
+        bl_idname=IDNAME,
+        bl_label="Cycles (Affinity Denoiser capture)",
+    )
+    return type("AffinityCyclesEngine", (bpy.types.RenderEngine,), namespace)
 
 
 def register() -> None:

@@ -3,6 +3,11 @@
 From a script or ``blender -b``: ``bpy.ops.affinity_denoiser.render_animation()`` runs to the
 end (``execute``). From the user interface the operator runs modally, one sub-render per timer
 tick, so the progress bar moves and Esc cancels between sub-renders.
+
+With another engine than Cycles the poll fails with a message saying so (and ``execute``, run
+anyway, reports it). Where the frames went is in the report and, for scripts, in
+``scene.affinity_denoiser.last_output_folder`` (also after an error or a cancel, when frames
+were written).
 """
 
 from __future__ import annotations
@@ -12,7 +17,8 @@ from typing import Any
 
 import bpy
 
-from .pipeline import DenoiseRender, Settings
+from .pipeline import DenoiseRender, Settings, cycles_problem
+from .properties import record_output_folder
 
 
 def _console(text: str) -> None:
@@ -31,11 +37,21 @@ class _DenoiseRenderBase:
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        return context.scene is not None and context.scene.render.engine == "CYCLES"
+        if context.scene is None:
+            return False
+        problem = cycles_problem(context.scene)
+        if problem:
+            # Blender shows it in the button's tooltip and in the error of bpy.ops calls.
+            cls.poll_message_set(problem)
+            return False
+        return True
 
     def _make_job(self, context: Any) -> DenoiseRender:
         scene = context.scene
         wm = context.window_manager
+        problem = cycles_problem(scene)
+        if problem:
+            raise RuntimeError(problem)
 
         def progress(done: int, total: int, text: str) -> None:
             wm.progress_update(done)
@@ -44,20 +60,36 @@ class _DenoiseRenderBase:
         return DenoiseRender(scene, context.view_layer, self.frames(scene),
                              Settings.from_properties(scene.affinity_denoiser), progress)
 
-    def _fail(self, exc: BaseException) -> set[str]:
+    @staticmethod
+    def _where(job: DenoiseRender | None) -> str:
+        """Records and describes where the run wrote its frames; empty when it wrote none."""
+        if job is None or not job.results:
+            return ""
+        record_output_folder(job.scene, job.folder)
+        where = f"{len(job.results)} frame(s) into {job.folder}"
+        if job.folder != job.base_folder:
+            where += (f" ({job.base_folder} has files of these frames already; nothing was "
+                      "overwritten)")
+        return where
+
+    def _fail(self, exc: BaseException, job: DenoiseRender | None = None) -> set[str]:
         message = str(exc) or type(exc).__name__
+        where = self._where(job)
+        if where:
+            message += f"; finished: {where}"
         _console(f"error: {message}")
         self.report({"ERROR"}, message)
         return {"CANCELLED"}
 
     def _succeed(self, job: DenoiseRender) -> set[str]:
-        message = f"denoised {len(job.results)} frame(s) into {job.folder}"
+        message = f"denoised {self._where(job)}"
         _console(message)
         self.report({"INFO"}, message)
         return {"FINISHED"}
 
     def execute(self, context: Any) -> set[str]:
         wm = context.window_manager
+        job = None
         try:
             job = self._make_job(context)
             wm.progress_begin(0, job.total_steps)
@@ -66,7 +98,7 @@ class _DenoiseRenderBase:
             finally:
                 wm.progress_end()
         except Exception as exc:  # the boundary: every failure becomes a report
-            return self._fail(exc)
+            return self._fail(exc, job)
         return self._succeed(job)
 
     def invoke(self, context: Any, event: Any) -> set[str]:
@@ -95,7 +127,9 @@ class _DenoiseRenderBase:
     def modal(self, context: Any, event: Any) -> set[str]:
         if event.type == "ESC":
             self._stop(context)
-            self.report({"WARNING"}, "denoise-render cancelled")
+            where = self._where(self._job)
+            self.report({"WARNING"}, "denoise-render cancelled" +
+                        (f"; finished: {where}" if where else ""))
             return {"CANCELLED"}
         if event.type != "TIMER":
             return {"RUNNING_MODAL"}  # like Blender's own render: no edits while rendering
@@ -108,7 +142,7 @@ class _DenoiseRenderBase:
         except Exception as exc:
             self._steps = None
             self._stop(context)
-            return self._fail(exc)
+            return self._fail(exc, self._job)
         return {"RUNNING_MODAL"}
 
 

@@ -8,14 +8,18 @@ Files of one frame F (four digits, more when needed):
 
 The default folder is ``affinity_denoised`` beside the render output. When any file a run would
 write already exists there, the run uses ``affinity_denoised_001`` (``_002``, ...) instead, so
-nothing rendered before is overwritten. Every file is written under a temporary name in the
-same folder and renamed into place when complete: a cancelled or failed write leaves no file.
+nothing rendered before is overwritten. Before the first sub-render the folder is made and a
+test file written into it (``prepare_folder``), so that an unwritable folder is named before
+any rendering. Every file is written under a temporary name in the same folder and renamed into
+place when complete: a cancelled or failed write leaves no file.
 """
 
 from __future__ import annotations
 
+import errno
 import itertools
 import os
+import tempfile
 from typing import Any, Callable, Iterable
 
 import numpy as np
@@ -60,6 +64,65 @@ def choose_run_folder(base: str, names: Iterable[str]) -> str:
         if not any(os.path.lexists(os.path.join(folder, n)) for n in names):
             return folder
     raise AssertionError("unreachable")
+
+
+class FolderNotWritable(RuntimeError):
+    """The output folder cannot be made or written into."""
+
+
+def _reason(error: OSError) -> str:
+    if error.errno == errno.EROFS:
+        return "read-only file system"
+    if error.errno in (errno.EACCES, errno.EPERM):
+        return "permission denied (read-only)"
+    return error.strerror or str(error)
+
+
+def prepare_folder(folder: str) -> list[str]:
+    """Makes ``folder`` (and its missing parents) and writes and removes a test file in it.
+
+    Returns the folders it made, outermost first, for ``remove_empty_folders``. Raises
+    FolderNotWritable naming the folder and the reason, having removed what it made."""
+    missing: list[str] = []
+    path = os.path.abspath(folder)
+    while not os.path.isdir(path):
+        if os.path.lexists(path):
+            raise FolderNotWritable(
+                f"the output folder {folder} is not writable: {path} is a file, not a folder")
+        missing.append(path)
+        parent = os.path.dirname(path)
+        if parent == path:
+            break
+        path = parent
+    created: list[str] = []
+    try:
+        for path in reversed(missing):
+            try:
+                os.mkdir(path)
+            except OSError as error:
+                raise FolderNotWritable(f"the output folder {folder} is not writable: cannot "
+                                        f"make {path}: {_reason(error)}") from error
+            created.append(path)
+        try:
+            handle, probe = tempfile.mkstemp(prefix=".affinity-write-test-", dir=folder)
+            os.close(handle)
+            os.remove(probe)
+        except OSError as error:
+            raise FolderNotWritable(
+                f"the output folder {folder} is not writable: {_reason(error)}") from error
+    except FolderNotWritable:
+        remove_empty_folders(created)
+        raise
+    return created
+
+
+def remove_empty_folders(created: list[str]) -> None:
+    """Removes the folders ``prepare_folder`` made, innermost first, where they are empty."""
+    for path in reversed(created):
+        try:
+            os.rmdir(path)
+        except OSError:
+            return  # not empty (or gone): neither it nor its parents are removed
 
 
 _temp_counter = itertools.count()

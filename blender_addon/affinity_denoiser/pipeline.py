@@ -36,6 +36,29 @@ def uses_sample_subsets(cycles_settings: Any) -> bool:
             and bpy.app.version >= SAMPLE_SUBSETS_VERIFIED_FROM)
 
 
+#: Names of Blender's built-in engines (their RNA enum has no items in background mode).
+_ENGINE_NAMES = {"BLENDER_EEVEE": "EEVEE", "BLENDER_EEVEE_NEXT": "EEVEE",
+                 "BLENDER_WORKBENCH": "Workbench"}
+
+
+def engine_name(identifier: str) -> str:
+    """The user interface's name of a render engine."""
+    import bpy
+
+    for engine_class in bpy.types.RenderEngine.__subclasses__():
+        if getattr(engine_class, "bl_idname", None) == identifier:
+            return str(engine_class.bl_label)
+    return _ENGINE_NAMES.get(identifier, identifier)
+
+
+def cycles_problem(scene: Any) -> str:
+    """Empty when ``scene`` renders with Cycles; else the message that says it must."""
+    if scene.render.engine == "CYCLES":
+        return ""
+    return (f"The Affinity Denoiser needs Cycles as the render engine, not "
+            f"{engine_name(scene.render.engine)}: choose Cycles in Render Properties")
+
+
 class Cancelled(RuntimeError):
     """The render was cancelled (Esc, or the render job reported a break)."""
 
@@ -109,6 +132,9 @@ class DenoiseRender:
         self.progress = progress or (lambda done, total, text: None)
         self.results: list[FrameResult] = []
         self.timings = Timings()
+        #: The folder the settings ask for, and the one the run writes into: the same, or
+        #: ``<base_folder>_NNN`` when the first has files of these frames already.
+        self.base_folder = ""
         self.folder = ""
         #: Keep each frame's per-sample data in its FrameResult (tests, inspection).
         self.keep_frames = False
@@ -138,16 +164,18 @@ class DenoiseRender:
         import bpy
 
         scene = self.scene
-        if scene.render.engine != "CYCLES":
-            raise RuntimeError("the Affinity Denoiser needs Cycles as the render engine")
+        problem = cycles_problem(scene)
+        if problem:
+            raise RuntimeError(problem)
         denoiser = backend.create_denoiser(self.settings.model_path, self.settings.fast_arithmetic)
         if self.settings.keep_sample_frames:
             backend.load_core(need_denoiser=False)  # the core writes frame files: fail early
         motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())  # fail early
-        base = output.base_folder(scene, self.settings.output_folder)
+        self.base_folder = output.base_folder(scene, self.settings.output_folder)
         self.folder = output.choose_run_folder(
-            base, [n for f in self.frames for n in self._file_names(f)]
+            self.base_folder, [n for f in self.frames for n in self._file_names(f)]
         )
+        created = output.prepare_folder(self.folder)  # an unwritable folder fails here
         original_frame = (scene.frame_current, scene.frame_subframe)
         try:
             with Overrides() as overrides, passes.shader_aovs(self.view_layer), \
@@ -158,6 +186,8 @@ class DenoiseRender:
             engine.session.sink = None
             engine.session.present = None
             scene.frame_set(original_frame[0], subframe=original_frame[1])
+            if not self.results:
+                output.remove_empty_folders(created)
         if self.results:
             first = self.results[0]
             compositor.update_denoised_node(scene, first.denoised_path, first.frame,

@@ -1,18 +1,33 @@
-"""Settings of the Affinity Denoiser, stored on the scene (``scene.affinity_denoiser``)."""
+"""Settings of the Affinity Denoiser, stored on the scene (``scene.affinity_denoiser``).
+
+There is no on / off switch: the panel's buttons (the operators) are what denoise-renders;
+ordinary renders (F12) are plain Cycles. ``last_output_folder`` (read-only) tells a script
+where the last denoise-render of the scene wrote its frames.
+"""
 
 from __future__ import annotations
+
+from typing import Any
 
 import bpy
 
 from .pipeline import MAX_SAMPLES_PER_FRAME
 
+#: Where ``last_output_folder``'s value is kept (an ID property of the settings, saved with the
+#: .blend); the property itself has a getter only, so that scripts cannot set it.
+_LAST_OUTPUT_KEY = "_last_output_folder"
+
+
+def _last_output_folder(settings: Any) -> str:
+    return str(settings.get(_LAST_OUTPUT_KEY, ""))
+
+
+def record_output_folder(scene: Any, folder: str) -> None:
+    """Remembers where a denoise-render of ``scene`` wrote its frames."""
+    scene.affinity_denoiser[_LAST_OUTPUT_KEY] = folder
+
 
 class AffinityDenoiserSettings(bpy.types.PropertyGroup):
-    enabled: bpy.props.BoolProperty(
-        name="Affinity Denoiser",
-        description="Denoise renders with the Affinity Denoiser (Render > Denoise-Render)",
-        default=False,
-    )
     samples_per_frame: bpy.props.IntProperty(
         name="Samples per Frame",
         description="One-sample sub-renders per frame, each a separate set of features",
@@ -50,6 +65,13 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
         name="Keep Sample Frames",
         description="Also write each frame's per-sample features (affinity frame files)",
         default=False,
+    )
+    last_output_folder: bpy.props.StringProperty(
+        name="Last Output Folder",
+        description="Where the last denoise-render of this scene wrote its frames (read-only; "
+        "empty before the first). The Output Folder, or a new folder beside it with a number "
+        "when it had files of the same frames already",
+        get=_last_output_folder,
     )
 
 

@@ -1,4 +1,5 @@
-"""The Affinity Denoiser panel in Render Properties (shown when Cycles is the engine)."""
+"""The Affinity Denoiser panel in Render Properties (shown when Cycles is the engine): the
+settings, the two buttons, and where the last run wrote its frames."""
 
 from __future__ import annotations
 
@@ -20,16 +21,12 @@ class AFFINITY_DENOISER_PT_render(bpy.types.Panel):
     def poll(cls, context: Any) -> bool:
         return context.scene is not None and context.scene.render.engine == "CYCLES"
 
-    def draw_header(self, context: Any) -> None:
-        self.layout.prop(context.scene.affinity_denoiser, "enabled", text="")
-
     def draw(self, context: Any) -> None:
         settings = context.scene.affinity_denoiser
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
         column = layout.column()
-        column.active = settings.enabled
         column.prop(settings, "samples_per_frame")
         column.prop(settings, "model_path")
         column.prop(settings, "fast_arithmetic")
@@ -40,9 +37,11 @@ class AFFINITY_DENOISER_PT_render(bpy.types.Panel):
         if problem:
             layout.label(text="Core missing: see the console", icon="ERROR")
         row = layout.row(align=True)
-        row.enabled = settings.enabled and not problem
+        row.enabled = not problem
         row.operator("affinity_denoiser.render_frame", icon="RENDER_STILL")
         row.operator("affinity_denoiser.render_animation", icon="RENDER_ANIMATION")
+        if settings.last_output_folder:
+            layout.label(text=f"Last output: {settings.last_output_folder}", icon="FILE_FOLDER")
 
 
 def register() -> None:

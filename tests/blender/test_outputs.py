@@ -169,3 +169,67 @@ def test_default_folder_is_beside_the_render_output(tmp_path: Any) -> None:
     assert output.base_folder(scene, str(tmp_path / "chosen")) == str(tmp_path / "chosen")
     assert output.choose_run_folder(str(tmp_path / "none_yet"), ["a.exr"]) == str(
         tmp_path / "none_yet")
+
+
+@pytest.mark.parametrize("case", ["parent_is_a_file", "under_proc", "default_under_proc",
+                                  "read_only_folder"])
+def test_an_unwritable_output_folder_is_named_before_any_rendering(tmp_path: Any,
+                                                                   case: str) -> None:
+    """Issue 40, item 5: the run rendered, then failed on the first write ("Could not write
+    image: Invalid argument"). Root writes into a 0555 folder, so that case runs only for a
+    user who cannot (or root without CAP_DAC_OVERRIDE); a path under a regular file or under
+    /proc fails for everyone."""
+    scene = _scene(tmp_path)
+    setting = ""
+    if case == "parent_is_a_file":
+        (tmp_path / "a_file").write_bytes(b"not a folder")
+        folder = setting = str(tmp_path / "a_file" / "denoised")
+    elif case == "under_proc":
+        folder = setting = "/proc/affinity_denoiser_test/denoised"
+    elif case == "default_under_proc":
+        scene.render.filepath = "/proc/affinity_denoiser_test/frame_"
+        folder = "/proc/affinity_denoiser_test/affinity_denoised"
+    else:
+        read_only = tmp_path / "read_only"
+        read_only.mkdir()
+        read_only.chmod(0o555)
+        folder = setting = str(read_only)
+        try:
+            (read_only / "probe").mkdir()
+        except PermissionError:
+            pass
+        else:
+            (read_only / "probe").rmdir()
+            read_only.chmod(0o755)
+            pytest.skip("this user writes into read-only folders (root)")
+    before = material_snapshot()
+    progress: list[Any] = []
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2],
+                                 pipeline.Settings(samples_per_frame=2, output_folder=setting),
+                                 lambda *step: progress.append(step))
+    try:
+        with pytest.raises(RuntimeError) as failure:
+            job.run()
+    finally:
+        if case == "read_only_folder":
+            (tmp_path / "read_only").chmod(0o755)
+    message = str(failure.value)
+    assert message.startswith(f"the output folder {folder} is not writable"), message
+    assert progress == [] and job.timings.sub_renders == []
+    _assert_restored(scene, before)
+    assert sorted(os.listdir(tmp_path)) == (["read_only"] if case == "read_only_folder" else
+                                            ["a_file"] if case == "parent_is_a_file" else [])
+
+
+def test_a_run_that_writes_nothing_leaves_no_empty_folder(tmp_path: Any) -> None:
+    """The folder is made (and a test file written and removed) before the first sub-render;
+    a run cancelled before its first frame removes the folders it made."""
+    scene = _scene(tmp_path)
+    job = _job(scene, [1, 2], output_folder=str(tmp_path / "new" / "denoised"))
+    steps = job.steps()
+    try:
+        next(steps)
+        assert os.listdir(tmp_path / "new" / "denoised") == []
+    finally:
+        steps.close()
+    assert os.listdir(tmp_path) == []
