@@ -58,8 +58,9 @@ int denoiseCommand(const std::vector<std::string>& args) {
                 throw Error("output folder " + out.string() + " already holds denoised frames; pass --force to overwrite them");
     // The model is read before the output folder is made: a refused run leaves nothing behind.
     Denoiser denoiser(a.has("--model") ? Model::fromFile(a.text("--model"), precision) : Model::builtIn(precision));
-    const OutputFolder folder(out);
+    // Before anything is written: a signal from here on leaves what was finished, nothing half-made.
     installInterruptHandlers();
+    const OutputFolder folder(out);
     denoiser.setInterruptCheck(interruptRequested);
 
     nlohmann::json perFrame = nlohmann::json::array();

@@ -184,6 +184,8 @@ int renderCommand(const std::vector<std::string>& args) {
     render::SequenceRenderer renderer(scene, settings);
     checkMemory(settings, compression, a.flag("--previews"));
 
+    // Before anything is written: a signal from here on leaves what was finished, nothing half-made.
+    installInterruptHandlers();
     const OutputFolder folder(out);
     if (a.flag("--force")) removeEarlierSequence(out);
     // Until its first frame is written, a run that fails takes back its scene.json (and then
@@ -199,7 +201,6 @@ int renderCommand(const std::vector<std::string>& args) {
     } sceneFile{out / "scene.json", wroteFrame};
     writeText(sceneFile.path, render::sceneToJson(scene));
 
-    installInterruptHandlers();
     nlohmann::json perFrame = nlohmann::json::array();
     double totalSeconds = 0.0;
     for (int i = 0; i < frames && !interruptRequested(); ++i) {
