@@ -1,6 +1,6 @@
 """ColorVideoVDP (Mantiuk et al. 2024) of every output sequence a benchmark run saved.
 
-    python -m affinity.bench --config cycles --out OUT --save-outputs FRAMES
+    PYTHONPATH=build/python:. .venv/bin/python -m affinity_bench --config cycles --out OUT --save-outputs FRAMES
     .venv-cvvdp/bin/python scripts/cvvdp_score.py FRAMES --out OUT/cvvdp.csv
 
 ColorVideoVDP is a perceptual full-reference video metric in JOD units (10: indistinguishable

@@ -2,7 +2,7 @@
 Blender's own denoiser come out against the reference, how sure the reference itself is of its
 brightness, and how much of the input's light arrives in its brightest pixels.
 
-    PYTHONPATH=build/python .venv/bin/python scripts/cycles_energy.py \
+    PYTHONPATH=build/python:. .venv/bin/python scripts/cycles_energy.py \
         --model cycles=training/results/cycles_ft1/cycles_ft1.affw --out results/bench_cycles/energy.md
 
 Brightness is the sequence's mean radiance over the reference's (docs/BENCHMARK.md). The
@@ -22,7 +22,7 @@ import sys
 import numpy as np
 
 import affinity
-from affinity.bench import cycles
+from affinity_bench import cycles
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)
 

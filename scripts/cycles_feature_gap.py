@@ -1,6 +1,6 @@
 """What the Cycles feature differences cost in denoising quality (docs/BLENDER.md, "Feature mapping").
 
-Renders the benchmark's sequences (python -m affinity.bench's `full` config: the seven
+Renders the benchmark's sequences (python -m affinity_bench's `full` config: the seven
 failure-case scenes and four held-out procedural seeds, same seeds, size and frames) twice at
 the largest sample count, with `affinity render --feature-convention renderer` and `cycles`:
 the same paths and radiance, only the features differ (path_tracer.h). Both are denoised at each
@@ -8,7 +8,7 @@ sample count with the built-in model (temporal, a fresh Denoiser per sequence) a
 OpenImageDenoise (colour + albedo + normal), and measured against the benchmark's 1024-spp
 references (its render cache; rendered first if missing). Writes a markdown report.
 
-    PYTHONPATH=build-gap/python .venv/bin/python scripts/cycles_feature_gap.py \
+    PYTHONPATH=build-gap/python:. .venv/bin/python scripts/cycles_feature_gap.py \
         --affinity-bin build-gap/core/affinity --out results/cycles_feature_gap.md
 """
 
@@ -27,9 +27,9 @@ import numpy as np
 
 import affinity
 from affinity import metrics
-from affinity.bench.config import FULL, Sequence
-from affinity.bench.data import DEFAULT_DATA_DIR, ensure_sequence, find_affinity_binary, with_spp
-from affinity.bench.methods import BUILT_IN, make_methods
+from affinity_bench.config import FULL, Sequence
+from affinity_bench.data import DEFAULT_DATA_DIR, ensure_sequence, find_affinity_binary, with_spp
+from affinity_bench.methods import BUILT_IN, make_methods
 
 CONVENTIONS = ("renderer", "cycles")
 #: What FeatureConvention::Cycles (core/render/path_tracer.cpp, CyclesFeatures) reproduces.
@@ -109,7 +109,7 @@ def evaluate(frames: list[dict[str, Any]], references: list[np.ndarray], runner)
 def main(argv: list[str]) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--out", type=pathlib.Path, required=True, help="markdown report")
-    parser.add_argument("--affinity-bin", help="the affinity program (default as python -m affinity.bench)")
+    parser.add_argument("--affinity-bin", help="the affinity program (default as python -m affinity_bench)")
     parser.add_argument("--data", type=pathlib.Path,
                         default=pathlib.Path(os.environ.get("AFFINITY_BENCH_DATA", DEFAULT_DATA_DIR)),
                         help="the benchmark's render cache, for the references")

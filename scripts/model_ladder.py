@@ -4,7 +4,7 @@ spp, with the inference ablations of the default model and the baselines as refe
 
     .venv/bin/python scripts/model_ladder.py results/bench/results.csv results/speed_1080p.jsonl [MORE.jsonl ...] > results/ladder.md
 
-Inputs: the benchmark's results.csv (python -m affinity.bench, mean over its sequences) and
+Inputs: the benchmark's results.csv (python -m affinity_bench, mean over its sequences) and
 the JSON lines of one or more runs of scripts/bench_denoiser.sh (BENCH_JSON=FILE), whose labels
 match the benchmark's `ours-<label>` methods. With several runs a model's ms is the median
 over them: on a shared VM one run can be 25 % off for one model and not for the next.

@@ -3,7 +3,7 @@
     PYTHONPATH=build/python .venv/bin/python scripts/temporal_error_floor.py [BENCH_CACHE_DIR]
 
 Scores each reference of the benchmark's cached sequences (default ~/.cache/affinity/bench-v1,
-made by `python -m affinity.bench`), blurred by a Gaussian of a few widths, against the
+made by `python -m affinity_bench`), blurred by a Gaussian of a few widths, against the
 reference itself: SMAPE and the temporal error of docs/BENCHMARK.md, means over the sequences.
 Such an output has no noise and does not flicker, yet its temporal error is not 0: the metric
 compares O_t - W O_{t-1} with R_t - W R_{t-1}, and a blurred output does not reproduce what the

@@ -12,7 +12,8 @@ echo "== C++ tests (Release)"
 ctest --test-dir build --output-on-failure -j "$jobs"
 
 echo "== Python tests"
-PYTHONPATH="$root/build/python" AFFINITY_BUILD_DIR="$root/build" .venv/bin/python -m pytest -q tests/python
+# The repository root too: the benchmark (affinity_bench/) is a package of the repository, not of the module.
+PYTHONPATH="$root/build/python:$root" AFFINITY_BUILD_DIR="$root/build" .venv/bin/python -m pytest -q tests/python
 
 echo "== Blender extension tests (bpy, headless)"
 PYTHONPATH="$root/build/python:$root/blender_addon" .venv-blender/bin/python -m pytest -q -W error \

@@ -39,5 +39,5 @@ echo "train_cycles.sh: $(ls "$mix/train" | grep -c '^cycles_') Cycles and $(ls "
   --lr "${LR:-3e-4}" --lr-half-life 1500 --threads "${THREADS:-2}" --export "$run/exported.affw" "$@"
 "$root/.venv/bin/python" "$root/training/plot_loss.py" "$run/loss.csv" --out "$run/loss.png" \
   --title "affinity_train fine-tune on Cycles"
-PYTHONPATH=$root/build/python "$root/.venv/bin/python" -m affinity.bench --config cycles --data "$cycles_data" \
+PYTHONPATH=$root/build/python:$root "$root/.venv/bin/python" -m affinity_bench --config cycles --data "$cycles_data" \
   --model "cycles=$run/exported.affw" --model small=builtin --out "$run/bench_cycles"

@@ -116,6 +116,8 @@ def test_wheel_holds_the_package_and_the_libraries_it_needs() -> None:
         for name in files if name.endswith(".py")
     }
     assert {n for n in names if n.startswith("affinity/") and n.endswith(".py")} == expected
+    # The benchmark is a development tool of the repository (affinity_bench/), never shipped.
+    assert not [n for n in names if n.startswith(("affinity/bench/", "affinity_bench/"))], names
     assert [n for n in names if n.startswith("affinity/_core")] == [
         "affinity/_core.cpython-311-x86_64-linux-gnu.so"]
     # auditwheel copied in what a Blender machine may not have (OpenEXR, Imath, libgomp).

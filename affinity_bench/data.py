@@ -44,18 +44,6 @@ def find_affinity_binary(explicit: str | None = None) -> pathlib.Path:
     raise SystemExit(f"bench: the affinity program was not found (tried {tried}); build it or pass --affinity-bin")
 
 
-def find_source_dir() -> pathlib.Path | None:
-    """The repository: $AFFINITY_SOURCE_DIR, else the source dir recorded in the build's CMake cache."""
-    if os.environ.get("AFFINITY_SOURCE_DIR"):
-        return pathlib.Path(os.environ["AFFINITY_SOURCE_DIR"])
-    cache = pathlib.Path(affinity.__file__).resolve().parents[2] / "CMakeCache.txt"
-    if cache.is_file():
-        for line in cache.read_text(errors="replace").splitlines():
-            if line.startswith("CMAKE_HOME_DIRECTORY:INTERNAL="):
-                return pathlib.Path(line.split("=", 1)[1])
-    return None
-
-
 def sequence_dir(data_dir: pathlib.Path, sequence: Sequence, config: Config) -> pathlib.Path:
     """Cache folder of one sequence; the name holds every render setting, so configs never collide."""
     return data_dir / (f"{sequence.name}_seed{sequence.seed}_{config.width}x{config.height}_{config.frames}f_"

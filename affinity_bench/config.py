@@ -1,4 +1,4 @@
-"""What a benchmark run covers: sequences, sizes, sample counts, speed sizes."""
+"""What a benchmark run covers: sequences, sizes, sample counts."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ FAILURE_CASE_SCENES = ("disocclusion", "fine_texture", "fireflies", "glossy", "l
 #: Procedural seeds never used in training (training uses 1000-1099 and 20000-21308, validation
 #: 9000-9003; docs/TRAINING.md).
 HELD_OUT_SEEDS = (9100, 9101, 9102, 9103)
-#: Seed of the bundled scenes' renders, as in scripts/train_evaluate.sh.
+#: Seed of the bundled scenes' renders.
 SCENE_RENDER_SEED = 7
 #: Added to a sequence's seed for its second, independent reference (the reference noise floor).
 SECOND_REFERENCE_SEED_OFFSET = 1_000_000
@@ -36,10 +36,7 @@ class Config:
     equal_time_spp: tuple[int, ...]  # sample counts of OpenImageDenoise (and noisy) in the equal-time chart
     reference_spp: int
     chart_spp: int                   # sample count of the crops
-    speed_sizes: tuple[tuple[int, int], ...]
     timing_runs: int                 # each sequence is denoised this often; per frame the fastest call counts
-    speed_spp: int = 4
-    speed_repeats: int = 3
     # Render a second reference with other random numbers and score it against the first: the
     # error any output has at best, since the references are noisy too.
     reference_noise: bool = True
@@ -71,7 +68,6 @@ FULL = Config(
     equal_time_spp=(2, 4, 8, 16, 32),
     reference_spp=1024,
     chart_spp=4,
-    speed_sizes=((1920, 1080),),
     timing_runs=3,
 )
 
@@ -86,7 +82,6 @@ TINY = Config(
     equal_time_spp=(2, 4, 8),
     reference_spp=64,
     chart_spp=4,
-    speed_sizes=((160, 90),),
     timing_runs=2,
 )
 
@@ -94,7 +89,7 @@ TINY = Config(
 #: never trained on.
 CYCLES_VALIDATION_SEEDS = tuple(range(9000, 9006))
 
-# Blender's Cycles through the extension's capture path (bench/cycles.py): the sequences are
+# Blender's Cycles through the extension's capture path (cycles.py): the sequences are
 # read from the cache that training/cycles/make_data.py fills, never rendered here; size,
 # frames and reference samples are the ones that command used.
 CYCLES = Config(
@@ -107,7 +102,6 @@ CYCLES = Config(
     equal_time_spp=(2, 4, 8),
     reference_spp=512,
     chart_spp=4,
-    speed_sizes=(),
     timing_runs=2,
 )
 

@@ -1,4 +1,4 @@
-"""python -m affinity.bench: see the package docstring and docs/BENCHMARK.md."""
+"""python -m affinity_bench: see the package docstring and docs/BENCHMARK.md."""
 
 from __future__ import annotations
 
@@ -15,25 +15,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from . import cycles, report
+from . import REPOSITORY, cycles, report
 from .config import CONFIGS, Config
-from .data import (DEFAULT_DATA_DIR, ensure_second_reference, ensure_sequence, find_affinity_binary, find_source_dir,
-                   load_references, load_sequence)
+from .data import (DEFAULT_DATA_DIR, ensure_second_reference, ensure_sequence, find_affinity_binary, load_references,
+                   load_sequence)
 from .evaluate import EQUAL_TIME_METHODS, SequenceResult, evaluate_sequence, reference_noise
 from .methods import BUILT_IN, Method, make_methods
-from .speed import measure_speed, speed_markdown, speed_rows
-
-
-def parse_size_list(text: str) -> tuple[tuple[int, int], ...]:
-    if text.strip().lower() in ("", "none"):
-        return ()
-    sizes = []
-    for part in text.split(","):
-        width, _, height = part.strip().lower().partition("x")
-        if not (width.isdigit() and height.isdigit()) or int(width) < 1 or int(height) < 1:
-            raise argparse.ArgumentTypeError(f"'{part}' is not a size WxH")
-        sizes.append((int(width), int(height)))
-    return tuple(sizes)
 
 
 def parse_spp_list(text: str) -> tuple[int, ...]:
@@ -55,9 +42,9 @@ def parse_model(text: str) -> tuple[str, str]:
 
 def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser = argparse.ArgumentParser(
-        prog="python -m affinity.bench",
+        prog="python -m affinity_bench",
         description="Error against time of our denoiser and its competitors on the same frames; "
-                    "stability on the failure-case scenes; speed and memory at 1080p/4K.")
+                    "stability on the failure-case scenes. Speed at 1080p: scripts/bench_denoiser.sh.")
     parser.add_argument("--out", required=True, type=pathlib.Path, help="output folder (created)")
     parser.add_argument("--config", choices=sorted(CONFIGS), default="full",
                         help="full (the documented benchmark), tiny (CI) or cycles (Blender renders, docs/CYCLES_DATA.md); default full")
@@ -69,7 +56,7 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                         help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model, PATH:bf16 the "
                              "model with bfloat16 products (CPUs with AVX512-BF16). The first "
                              "one's ablations run too. Default: small=builtin and the ladder's other models in "
-                             "<source>/core/models (tiny, medium)")
+                             "core/models of this repository (tiny, medium)")
     parser.add_argument("--methods", help="comma-separated method labels to run (default: all)")
     parser.add_argument("--sequences", help="comma-separated sequence names to run (default: the config's)")
     parser.add_argument("--spp", type=parse_spp_list, metavar="S,...",
@@ -82,21 +69,18 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("--save-outputs", type=pathlib.Path, metavar="DIR",
                         help="write every method's output frames (and the references) as .npy files into "
                              "DIR/<sequence>/<method>_<spp>spp.npy, e.g. for scripts/cvvdp_score.py")
-    parser.add_argument("--speed-sizes", type=parse_size_list,
-                        help="WxH,... for the speed table, or 'none' (full default 1920x1080; add 3840x2160 for 4K)")
     return parser.parse_args(argv)
 
 
 def default_models(notice: Callable[[str], None]) -> list[tuple[str, str]]:
     models = [("small", BUILT_IN)]
-    source = find_source_dir()
     # The other trained rungs of the model ladder (docs/TRAINING.md), smallest first.
     for label in ("tiny", "medium"):
         file = f"core/models/{label}.affw"
-        if source and (source / file).is_file():
-            models.append((label, str(source / file)))
+        if (REPOSITORY / file).is_file():
+            models.append((label, str(REPOSITORY / file)))
         else:
-            notice(f"ours-{label} skipped: {file} not found (set AFFINITY_SOURCE_DIR or pass --model)")
+            notice(f"ours-{label} skipped: {file} not found (pass --model)")
     return models
 
 
@@ -115,8 +99,6 @@ def configure(args: argparse.Namespace) -> Config:
         config = config.with_overrides(spp=args.spp, chart_spp=chart_spp)
     if args.reference_spp is not None:
         config = config.with_overrides(reference_spp=args.reference_spp)
-    if args.speed_sizes is not None:
-        config = config.with_overrides(speed_sizes=args.speed_sizes)
     if args.reference_noise is not None:
         config = config.with_overrides(reference_noise=args.reference_noise)
     return config
@@ -156,7 +138,7 @@ def machine_text() -> str:
 def evaluate_cycles_sequence(data: pathlib.Path, seed: int, methods: list[Method],
                              config: Config, keep_outputs: bool
                              ) -> tuple[list[SequenceResult], SequenceResult | None, list[np.ndarray]]:
-    """A Cycles validation sequence (bench/cycles.py): every method, plus Blender's own denoiser,
+    """A Cycles validation sequence (cycles.py): every method, plus Blender's own denoiser,
     whose time is its whole render. Also the reference noise and the references."""
     sequence = cycles.CyclesSequence(cycles.sequence_folder(data, seed))
     name = sequence.folder.name
@@ -273,32 +255,23 @@ def main(argv: list[str] | None = None) -> None:
     if points:
         report.chart_equal_time(points, out / "equal_time.png", config.name)
 
-    speed_text = ""
-    if config.speed_sizes:
-        records = measure_speed([m.label for m in methods], list(config.speed_sizes), config.speed_spp,
-                                config.speed_repeats, models)
-        header, rows = speed_rows(records)
-        report.write_csv(out / "speed.csv", header, rows)
-        speed_text = speed_markdown(records, config.speed_repeats)
-        report.write_text(out / "speed.md", "# Speed and memory\n\n" + speed_text)
-
     elapsed = time.perf_counter() - started
     load = (load_at_start, os.getloadavg()[0])
     if config.name == "cycles":
         methods = methods + [cycles.blender_oidn_description()]
     report.write_text(out / "results.md", results_markdown(argv, config, methods, results, noise, points,
-                                                          speed_text, notices, elapsed, load))
+                                                          notices, elapsed, load))
     print(f"bench: done in {elapsed:.0f} s -> {out}", flush=True)
 
 
 def results_markdown(argv: list[str], config: Config, methods: list[Method], results: list[SequenceResult],
-                     noise: list[SequenceResult], points: dict, speed_text: str, notices: list[str], elapsed: float,
+                     noise: list[SequenceResult], points: dict, notices: list[str], elapsed: float,
                      load: tuple[float, float]) -> str:
     sequences = ", ".join(s.name for s in config.sequences)
     # Sequences with per-frame charts and crops: the failure cases, or every Cycles scene.
     failure_cases = [s.name for s in config.sequences if s.failure_case or config.name == "cycles"]
     text = f"# Benchmark results ({config.name} configuration)\n\n"
-    text += f"Command: `python -m affinity.bench {shlex.join(argv)}`, {elapsed:.0f} s, "
+    text += f"Command: `python -m affinity_bench {shlex.join(argv)}`, {elapsed:.0f} s, "
     text += f"{datetime.date.today().isoformat()}.  \n"
     text += (f"Machine: {machine_text()}; 1-minute load average {load[0]:.1f} at the start, {load[1]:.1f} at the "
              f"end (timings are wall-clock: other work on the machine inflates them); pyoidn {version('pyoidn')}, "
@@ -331,8 +304,6 @@ def results_markdown(argv: list[str], config: Config, methods: list[Method], res
     if noise:
         text += "\n## Reference noise\n\n" + report.reference_noise_markdown(noise, config.reference_spp)
     text += "\n## Per sequence\n" + report.per_scene_markdown(results, config.spp)
-    if speed_text:
-        text += "\n## Speed and memory\n\n" + speed_text
     return text
 
 
