@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # One command for a full training (docs/TRAINING.md): renders the data cache if needed, trains,
-# plots the loss curves, exports the best weights and evaluates them against the noisy input.
+# plots the loss curves, exports the best weights and evaluates them with the benchmark's renderer
+# suite (docs/BENCHMARK.md) beside the built-in model, OpenImageDenoise and the noisy input.
 #   scripts/train.sh [extra affinity_train options for both stages, e.g. --albedo-demodulation]
 # The defaults are the shipped default model's recipe from scratch on the CPU (docs/TRAINING.md,
 # "One command in two stages"): preset small; 220 procedural and 40 "sparks" sequences rendered
@@ -13,17 +14,20 @@
 #      half as bright as with the term from the first step (docs/TRAINING.md, "One command in
 #      two stages").
 # The whole command keeps to BUDGET minutes (170): the training gets what the data step left,
-# less 10 minutes for the evaluation, so a slow host trains for less rather than running past
-# 3 hours (rendering the data took 18 minutes on the Intel host of 2026-12-04, 46 on an AMD EPYC
-# Zen 1 host). The machine must do nothing else meanwhile: a build, a benchmark or a second
-# trainer beside it slows each step several times over, even at the lowest scheduling class.
+# less 10 minutes for the evaluation (the benchmark: 4-9 minutes on 2 cores; the first time it
+# also renders its sequences into its cache, about 6 minutes more), so a slow host trains for
+# less rather than running past 3 hours (rendering the data took 18 minutes on the Intel host of
+# 2026-12-04, 46 on an AMD EPYC Zen 1 host). The machine must do nothing else meanwhile: a
+# build, a benchmark or a second trainer beside it slows each step several times over, even at
+# the lowest scheduling class.
 # Environment: AFFINITY_DATA (data cache, default $HOME/.cache/affinity/data-v2), RUN (output
 # folder, default $AFFINITY_DATA/../runs/<preset>; stages in RUN/stage1 and RUN/stage2; a stage
 # whose weights RUN/stageN.affw exist is not run again, an interrupted one resumes), PRESET
 # (small), MINUTES (training minutes of both stages; default: what BUDGET leaves; 0 is not
 # allowed), FINAL_MINUTES (20), BATCH (4), LR_HALF_LIFE (3000, stage 1), THREADS (2), SEED (1),
 # DEVICE (cpu; cuda with a CUDA build of libtorch), EXPORT (weights file to write, default
-# $RUN/exported.affw; core/models/default.affw replaces the built-in model at the next build).
+# $RUN/exported.affw; core/models/default.affw replaces the built-in model at the next build);
+# the evaluation goes to $RUN/bench (results.md, results.csv, charts).
 # OpenMP's default wait policy (workers spin briefly before sleeping): with OMP_WAIT_POLICY=passive a
 # step takes about twice as long (docs/TRAINING.md, "Threads that sleep between ops").
 # Data settings: see scripts/make_training_data.sh (TRAIN_SEEDS, SPP, JOBS, ...; defaults below).
@@ -70,4 +74,6 @@ python=$root/.venv/bin/python
 [ -x "$python" ] || python=python3
 "$python" "$root/training/plot_loss.py" "$run/stage1/loss.csv" "$run/stage2/loss.csv" --out "$run/loss.png" \
   --title "affinity_train $preset, two stages"
-"$root/scripts/train_evaluate.sh" "$export_path"
+# The evaluation is the benchmark's (docs/BENCHMARK.md), on the trained and the built-in model.
+PYTHONPATH=$root/build/python:$root "$python" -m affinity_bench --config full --model "trained=$export_path" \
+  --model small=builtin --methods noisy,oidn,ours-trained,ours-small --no-reference-noise --out "$run/bench"

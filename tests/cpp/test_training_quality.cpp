@@ -20,9 +20,9 @@ namespace fs = std::filesystem;
 
 namespace {
 
-// Mean over frames of SMAPE(denoised) / mean SMAPE(noisy), measured with the shipped model when
-// it was committed (scripts/train_evaluate.sh figures are in docs/TRAINING.md), and the slack
-// allowed for renderer or pipeline changes that move the numbers a little.
+// Mean over frames of SMAPE(denoised) / mean SMAPE(noisy), measured by this test with the shipped
+// model when it was committed (the model's benchmark figures are in docs/TRAINING.md), and the
+// slack allowed for renderer or pipeline changes that move the numbers a little.
 constexpr double kRecordedRatio = 0.535;  // glossy, 64x48, 4 frames at 4 spp: 0.5353 when committed (2026-12-03, run 6)
 constexpr double kTolerance = 0.05;
 
