@@ -10,8 +10,8 @@
 #include <random>
 #include <vector>
 
-#include "affinity_filter.h"
-#include "bilinear_warp.h"
+#include "kernels/affinity_filter.h"
+#include "kernels/bilinear_warp.h"
 
 namespace affinity {
 namespace {

@@ -20,10 +20,10 @@
 #include <vector>
 
 #include "affinity/features.h"
-#include "embedding.h"
+#include "network/embedding.h"
 #include "fma_chains.h"
-#include "simd8.h"
-#include "unet_layers.h"
+#include "kernels/simd8.h"
+#include "network/unet_layers.h"
 
 #if AFFINITY_BENCH_ONEDNN
 #include <oneapi/dnnl/dnnl.hpp>

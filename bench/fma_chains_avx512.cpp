@@ -1,7 +1,7 @@
 // fma_chains.h with 16-lane AVX-512 vectors: built with -march=x86-64-v4 (bench/CMakeLists.txt).
 #include "fma_chains.h"
 
-#include "simd16.h"
+#include "kernels/simd16.h"
 
 namespace affinity {
 

@@ -25,12 +25,12 @@ struct PreparedInputs {
 // sequence's frames so far black) it is computed from this frame.
 PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass = false,
                              const at::Tensor& exposure = at::Tensor());
-// The core's exposureOf (core/src/exposure.h) per batch element of sanitised radiance
+// The core's exposureOf (core/src/pipeline/exposure.h) per batch element of sanitised radiance
 // [B, S, 6, H, W] (diffuse then specular, non-finite and negative values already 0): [B] in double.
 at::Tensor exposureOf(const at::Tensor& cleanRadiance);
 
 // Albedo below this divides (and multiplies) as this: the quotient stays bounded (the core's
-// kDemodulationFloor in core/src/filter_signal.h says why 0.1).
+// kDemodulationFloor in core/src/network/filter_signal.h says why 0.1).
 inline constexpr double kDemodulationFloor = 0.1;
 // What the moving average accumulates (docs/MODEL.md section 1), [B, C + extra, H, W]: first the
 // C channels the kernels filter (the radiance, or with albedo demodulation the diffuse radiance

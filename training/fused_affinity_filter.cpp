@@ -12,7 +12,7 @@
 #include <vector>
 
 #include "affinity/error.h"
-#include "src/fast_exp.h"
+#include "kernels/fast_exp.h"
 
 namespace affinity::train {
 namespace {

@@ -14,10 +14,10 @@
 #include <vector>
 
 #include "affinity/error.h"
-#include "affinity_filter.h"
-#include "bilinear_warp.h"
-#include "catmull_rom_warp.h"
-#include "fast_exp.h"
+#include "kernels/affinity_filter.h"
+#include "kernels/bilinear_warp.h"
+#include "kernels/catmull_rom_warp.h"
+#include "kernels/fast_exp.h"
 
 namespace affinity {
 namespace {

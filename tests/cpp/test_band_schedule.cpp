@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "affinity/error.h"
-#include "band_schedule.h"
+#include "pipeline/band_schedule.h"
 
 namespace affinity {
 namespace {

@@ -1,4 +1,4 @@
-// The bfloat16 products (core/src/bf16_gemm.h) against sums in double: over the operands rounded
+// The bfloat16 products (core/src/kernels/bf16_gemm.h) against sums in double: over the operands rounded
 // to bfloat16 they must agree to FP32 accumulation rounding; over the FP32 operands, to the
 // 2^-7 relative rounding of two bfloat16 factors (8 significant bits: at most 2^-8 each).
 #include <cmath>
@@ -10,7 +10,7 @@
 #include <gtest/gtest.h>
 
 #include "affinity/error.h"
-#include "bf16_gemm.h"
+#include "kernels/bf16_gemm.h"
 
 namespace affinity {
 namespace {

@@ -20,7 +20,7 @@ Model randomModel(unsigned seed = 1, float lambdaBias = 0.0f, float temporalBias
 }
 
 // The same shape with every signal option: demodulated diffuse and specular filtered, emissive
-// samples bypassing the kernels (core/src/filter_signal.h).
+// samples bypassing the kernels (core/src/network/filter_signal.h).
 Model randomModel(unsigned seed, bool albedoDemodulation) {
     test::ModelShape shape;
     shape.albedoDemodulation = albedoDemodulation;

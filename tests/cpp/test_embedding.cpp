@@ -14,9 +14,9 @@
 
 #include "affinity/error.h"
 #include "affinity/features.h"
-#include "embedding.h"
-#include "exposure.h"
-#include "fast_log1p.h"
+#include "network/embedding.h"
+#include "pipeline/exposure.h"
+#include "kernels/fast_log1p.h"
 
 namespace affinity {
 namespace {

@@ -2,7 +2,7 @@
 // the tightest fit without cutting a much larger map down, and grow rather than pile up buffers.
 #include <gtest/gtest.h>
 
-#include "feature_map_pool.h"
+#include "pipeline/feature_map_pool.h"
 
 using namespace affinity;
 

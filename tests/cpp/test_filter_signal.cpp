@@ -1,4 +1,4 @@
-// What the kernels filter (core/src/filter_signal.h, docs/MODEL.md section 6): the embedding's
+// What the kernels filter (core/src/network/filter_signal.h, docs/MODEL.md section 6): the embedding's
 // per-pixel sample sums against sums written out by hand, the radiance and demodulated signals
 // made from them, and the round trip back to radiance.
 #include <gtest/gtest.h>
@@ -11,8 +11,8 @@
 
 #include "affinity/error.h"
 #include "affinity/features.h"
-#include "embedding.h"
-#include "filter_signal.h"
+#include "network/embedding.h"
+#include "network/filter_signal.h"
 
 namespace affinity {
 namespace {

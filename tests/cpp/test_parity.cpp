@@ -11,7 +11,7 @@
 #include "affinity/error.h"
 #include "affinity/weights.h"
 #include "affinity_ops.h"
-#include "catmull_rom_warp.h"
+#include "kernels/catmull_rom_warp.h"
 #include "model_config.h"
 #include "model_surgery.h"
 #include "random_model.h"

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "affinity/error.h"
-#include "unet_layers.h"
+#include "network/unet_layers.h"
 
 namespace affinity {
 namespace {

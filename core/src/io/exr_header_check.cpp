@@ -1,4 +1,4 @@
-#include "exr_header_check.h"
+#include "io/exr_header_check.h"
 
 #include <cstdint>
 #include <cstring>

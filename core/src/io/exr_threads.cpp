@@ -1,4 +1,4 @@
-#include "exr_threads.h"
+#include "io/exr_threads.h"
 
 #include <OpenEXR/ImfThreading.h>
 #include <omp.h>

@@ -30,8 +30,8 @@
 
 #include "affinity/atomic_file.h"
 #include "affinity/error.h"
-#include "exr_header_check.h"
-#include "exr_threads.h"
+#include "io/exr_header_check.h"
+#include "io/exr_threads.h"
 
 // The format is specified in docs/FRAME_FILES.md; keep the two in step.
 namespace affinity {

@@ -18,7 +18,7 @@
 
 #include "affinity/atomic_file.h"
 #include "affinity/error.h"
-#include "exr_threads.h"
+#include "io/exr_threads.h"
 
 namespace affinity {
 namespace {

@@ -1,4 +1,4 @@
-#include "affinity_filter.h"
+#include "kernels/affinity_filter.h"
 
 #include <omp.h>
 
@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "affinity/error.h"
-#include "affinity_strips.h"
-#include "conv_kernel.h"
+#include "kernels/affinity_strips.h"
+#include "kernels/conv_kernel.h"
 
 namespace affinity {
 namespace {

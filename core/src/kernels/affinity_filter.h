@@ -1,8 +1,8 @@
 #pragma once
 // The dilated affinity kernels and the temporal affinity kernel of docs/MODEL.md sections
 // 6-7.
-#include "conv_kernel.h"
-#include "feature_map.h"
+#include "kernels/conv_kernel.h"
+#include "kernels/feature_map.h"
 
 namespace affinity {
 

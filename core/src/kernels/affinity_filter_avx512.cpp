@@ -1,6 +1,6 @@
 // The affinity filter's AVX-512 path: affinity_strips.h with 16-lane vectors. Built with
 // -march=x86-64-v4 (core/CMakeLists.txt) and entered only after a run-time CPU check.
-#include "affinity_strips.h"
+#include "kernels/affinity_strips.h"
 
 namespace affinity {
 

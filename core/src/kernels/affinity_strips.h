@@ -9,7 +9,7 @@
 #include <cstring>
 #include <utility>
 
-#include "fast_exp.h"
+#include "kernels/fast_exp.h"
 
 namespace affinity {
 

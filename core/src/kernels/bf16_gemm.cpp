@@ -1,11 +1,11 @@
-#include "bf16_gemm.h"
+#include "kernels/bf16_gemm.h"
 
 #include <cstring>
 #include <string>
 
 #include "affinity/error.h"
-#include "aligned_allocator.h"
-#include "conv_kernel.h"
+#include "kernels/aligned_allocator.h"
+#include "kernels/conv_kernel.h"
 
 namespace affinity {
 

@@ -10,7 +10,7 @@
 #include <cstdint>
 #include <vector>
 
-#include "aligned_allocator.h"
+#include "kernels/aligned_allocator.h"
 
 namespace affinity {
 

@@ -5,10 +5,10 @@
 // transforms that store V in bfloat16 are instantiated here too, where the conversion compiles.
 #include <immintrin.h>
 
-#include "bf16_gemm.h"
-#include "coarse_winograd_transforms.h"
-#include "simd16.h"
-#include "winograd_transforms.h"
+#include "kernels/bf16_gemm.h"
+#include "kernels/coarse_winograd_transforms.h"
+#include "kernels/simd16.h"
+#include "kernels/winograd_transforms.h"
 
 namespace affinity {
 namespace {

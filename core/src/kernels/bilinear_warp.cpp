@@ -1,4 +1,4 @@
-#include "bilinear_warp.h"
+#include "kernels/bilinear_warp.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,7 +6,7 @@
 #include <string>
 
 #include "affinity/error.h"
-#include "warp_rows.h"
+#include "kernels/warp_rows.h"
 
 namespace affinity {
 namespace {

@@ -2,7 +2,7 @@
 // Bilinear warping of a previous frame's maps into the current frame by its motion vectors
 // (docs/MODEL.md section 3): the embedding history and the temporal kernel's features (the
 // radiance is warped sharper: catmull_rom_warp.h).
-#include "feature_map.h"
+#include "kernels/feature_map.h"
 
 namespace affinity {
 

@@ -1,4 +1,4 @@
-#include "catmull_rom_warp.h"
+#include "kernels/catmull_rom_warp.h"
 
 #include <algorithm>
 #include <cmath>
@@ -6,8 +6,8 @@
 #include <string>
 
 #include "affinity/error.h"
-#include "bilinear_warp.h"
-#include "warp_rows.h"
+#include "kernels/bilinear_warp.h"
+#include "kernels/warp_rows.h"
 
 namespace affinity {
 namespace {

@@ -6,7 +6,7 @@
 // weights (4x4 taps) keep the detail; the result is clamped to the range of the four nearest
 // taps, channel by channel, so the cubic's overshoot can neither ring at edges nor make
 // radiance negative.
-#include "feature_map.h"
+#include "kernels/feature_map.h"
 
 namespace affinity {
 

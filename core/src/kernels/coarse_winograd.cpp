@@ -1,13 +1,13 @@
-#include "coarse_winograd.h"
+#include "kernels/coarse_winograd.h"
 
 #include <algorithm>
 
-#include "aligned_allocator.h"
-#include "coarse_winograd_transforms.h"
-#include "simd8.h"
-#include "winograd_conv.h"
-#include "winograd_products.h"
-#include "winograd_tiles.h"
+#include "kernels/aligned_allocator.h"
+#include "kernels/coarse_winograd_transforms.h"
+#include "kernels/simd8.h"
+#include "kernels/winograd_conv.h"
+#include "kernels/winograd_products.h"
+#include "kernels/winograd_tiles.h"
 
 namespace affinity {
 namespace {

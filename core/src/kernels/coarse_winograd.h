@@ -9,9 +9,9 @@
 #include <vector>
 
 #include "affinity/precision.h"
-#include "bf16_gemm.h"
-#include "coarse_winograd_transforms.h"
-#include "conv_kernel.h"
+#include "kernels/bf16_gemm.h"
+#include "kernels/coarse_winograd_transforms.h"
+#include "kernels/conv_kernel.h"
 
 namespace affinity {
 

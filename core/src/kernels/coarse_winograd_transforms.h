@@ -6,7 +6,7 @@
 #include <algorithm>
 #include <cstddef>
 
-#include "winograd_transforms.h"  // loadLanes, storeLanes
+#include "kernels/winograd_transforms.h"  // loadLanes, storeLanes
 
 namespace affinity {
 

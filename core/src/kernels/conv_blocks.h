@@ -6,7 +6,7 @@
 // concatenation order) whatever the vector width: the two paths agree bitwise.
 #include <cstddef>
 
-#include "conv_kernel.h"
+#include "kernels/conv_kernel.h"
 
 namespace affinity {
 

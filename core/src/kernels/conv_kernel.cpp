@@ -1,4 +1,4 @@
-#include "conv_kernel.h"
+#include "kernels/conv_kernel.h"
 
 #include <algorithm>
 #include <cstdlib>
@@ -6,8 +6,8 @@
 #include <string>
 
 #include "affinity/error.h"
-#include "conv_blocks.h"
-#include "simd8.h"
+#include "kernels/conv_blocks.h"
+#include "kernels/simd8.h"
 
 namespace affinity {
 

@@ -9,7 +9,7 @@
 #include <cstddef>
 #include <vector>
 
-#include "aligned_allocator.h"
+#include "kernels/aligned_allocator.h"
 
 namespace affinity {
 

@@ -2,8 +2,8 @@
 // Built with -march=x86-64-v4 (core/CMakeLists.txt) and entered only after a run-time CPU
 // check, so the library still runs on AVX2-only machines. Where the cores have full-width
 // 512-bit FMA units (Zen 5), this doubles the convolutions' throughput over AVX2.
-#include "conv_blocks.h"
-#include "simd16.h"
+#include "kernels/conv_blocks.h"
+#include "kernels/simd16.h"
 
 namespace affinity {
 

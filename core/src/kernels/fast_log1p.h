@@ -4,7 +4,7 @@
 #include <bit>
 #include <cstdint>
 
-#include "fast_exp.h"  // VecF, VecI
+#include "kernels/fast_exp.h"  // VecF, VecI
 
 namespace affinity {
 namespace {

@@ -1,8 +1,8 @@
-#include "feature_map.h"
+#include "kernels/feature_map.h"
 
 #include <algorithm>
 
-#include "map_memory.h"
+#include "kernels/map_memory.h"
 
 namespace affinity {
 

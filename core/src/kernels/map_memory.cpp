@@ -1,4 +1,4 @@
-#include "map_memory.h"
+#include "kernels/map_memory.h"
 
 #include <sys/mman.h>
 

@@ -1,4 +1,4 @@
-#include "upsampled_conv.h"
+#include "kernels/upsampled_conv.h"
 
 #include <vector>
 

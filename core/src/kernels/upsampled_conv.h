@@ -7,9 +7,9 @@
 // 3x3 convolution added onto it, directly (row) or, kWinogradRows rows at a time, both parts in
 // Winograd forms (rowGroup: coarse_winograd.h and winograd_conv.h). The same function as
 // Conv2d's unfolded path up to float rounding (the folded weights are sums), not bit for bit.
-#include "coarse_winograd.h"
-#include "conv_kernel.h"
-#include "winograd_conv.h"
+#include "kernels/coarse_winograd.h"
+#include "kernels/conv_kernel.h"
+#include "kernels/winograd_conv.h"
 
 namespace affinity {
 

@@ -5,7 +5,7 @@
 #include <algorithm>
 #include <cstddef>
 
-#include "feature_map.h"
+#include "kernels/feature_map.h"
 
 namespace affinity {
 

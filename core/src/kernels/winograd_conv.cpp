@@ -1,14 +1,14 @@
-#include "winograd_conv.h"
+#include "kernels/winograd_conv.h"
 
 #include <algorithm>
 #include <string>
 
 #include "affinity/error.h"
-#include "aligned_allocator.h"
-#include "simd8.h"
-#include "winograd_tiles.h"
-#include "winograd_products.h"
-#include "winograd_transforms.h"
+#include "kernels/aligned_allocator.h"
+#include "kernels/simd8.h"
+#include "kernels/winograd_tiles.h"
+#include "kernels/winograd_products.h"
+#include "kernels/winograd_transforms.h"
 
 namespace affinity {
 namespace {

@@ -13,10 +13,10 @@
 #include <vector>
 
 #include "affinity/precision.h"
-#include "bf16_gemm.h"
-#include "conv_kernel.h"
-#include "feature_map.h"
-#include "winograd_transforms.h"  // kWinogradRows: output rows (and columns) of a tile
+#include "kernels/bf16_gemm.h"
+#include "kernels/conv_kernel.h"
+#include "kernels/feature_map.h"
+#include "kernels/winograd_transforms.h"  // kWinogradRows: output rows (and columns) of a tile
 
 namespace affinity {
 

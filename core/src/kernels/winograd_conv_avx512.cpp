@@ -1,9 +1,9 @@
 // The Winograd transforms' AVX-512 path: winograd_transforms.h and coarse_winograd_transforms.h
 // with 16-lane vectors. Built with -march=x86-64-v4 (core/CMakeLists.txt) and entered only after
 // a run-time CPU check.
-#include "coarse_winograd_transforms.h"
-#include "simd16.h"
-#include "winograd_transforms.h"
+#include "kernels/coarse_winograd_transforms.h"
+#include "kernels/simd16.h"
+#include "kernels/winograd_transforms.h"
 
 namespace affinity {
 

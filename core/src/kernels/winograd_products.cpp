@@ -1,4 +1,4 @@
-#include "winograd_products.h"
+#include "kernels/winograd_products.h"
 
 namespace affinity {
 

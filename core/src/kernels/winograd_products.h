@@ -6,8 +6,8 @@
 #include <cstddef>
 #include <vector>
 
-#include "bf16_gemm.h"
-#include "conv_kernel.h"
+#include "kernels/bf16_gemm.h"
+#include "kernels/conv_kernel.h"
 
 namespace affinity {
 

@@ -4,7 +4,7 @@
 #include <algorithm>
 #include <cstddef>
 
-#include "conv_kernel.h"
+#include "kernels/conv_kernel.h"
 
 namespace affinity::winograd {
 

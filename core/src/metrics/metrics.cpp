@@ -4,9 +4,9 @@
 #include <cmath>
 #include <limits>
 
-#include "affinity_filter.h"
-#include "bilinear_warp.h"
-#include "feature_map.h"
+#include "kernels/affinity_filter.h"
+#include "kernels/bilinear_warp.h"
+#include "kernels/feature_map.h"
 
 namespace affinity {
 

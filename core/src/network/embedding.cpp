@@ -1,4 +1,4 @@
-#include "embedding.h"
+#include "network/embedding.h"
 
 #include <algorithm>
 #include <cmath>
@@ -8,9 +8,9 @@
 
 #include "affinity/error.h"
 #include "affinity/features.h"
-#include "aligned_allocator.h"
-#include "fast_exp.h"
-#include "fast_log1p.h"
+#include "kernels/aligned_allocator.h"
+#include "kernels/fast_exp.h"
+#include "kernels/fast_log1p.h"
 
 namespace affinity {
 namespace {

@@ -6,9 +6,9 @@
 
 #include "affinity/features.h"
 #include "affinity/precision.h"
-#include "bf16_gemm.h"
-#include "conv_kernel.h"
-#include "feature_map.h"
+#include "kernels/bf16_gemm.h"
+#include "kernels/conv_kernel.h"
+#include "kernels/feature_map.h"
 
 namespace affinity {
 

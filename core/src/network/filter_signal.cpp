@@ -1,10 +1,10 @@
-#include "filter_signal.h"
+#include "network/filter_signal.h"
 
 #include <algorithm>
 #include <string>
 
 #include "affinity/error.h"
-#include "embedding.h"
+#include "network/embedding.h"
 
 namespace affinity {
 

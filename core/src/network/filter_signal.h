@@ -5,7 +5,7 @@
 // then channels that are only accumulated: the albedo, multiplied back after filtering so that
 // texture detail need not survive the kernels, and with emission bypass the radiance of
 // emissive samples, added back so that a light smaller than a pixel is not spread around.
-#include "feature_map.h"
+#include "kernels/feature_map.h"
 
 namespace affinity {
 

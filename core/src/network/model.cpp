@@ -1,7 +1,7 @@
 #include "affinity/model.h"
 
 #include "affinity/weights.h"
-#include "network.h"
+#include "network/network.h"
 
 // The default model's bytes, generated at build time from models/default.affw.
 extern "C" const unsigned char affinity_default_model[];

@@ -1,4 +1,4 @@
-#include "network.h"
+#include "network/network.h"
 
 #include <set>
 

@@ -6,9 +6,9 @@
 #include <vector>
 
 #include "affinity/precision.h"
-#include "embedding.h"
-#include "filter_signal.h"
-#include "unet_layers.h"
+#include "network/embedding.h"
+#include "network/filter_signal.h"
+#include "network/unet_layers.h"
 
 namespace affinity {
 
@@ -34,7 +34,7 @@ struct Network {
     int kernelChannels() const { return affinityFeatures + 2; }
     // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda).
     int headChannels() const { return kernels * kernelChannels() + 2; }
-    // Where the filtered and the only accumulated channels sit (core/src/filter_signal.h).
+    // Where the filtered and the only accumulated channels sit (filter_signal.h).
     SignalLayout signalLayout() const { return SignalLayout{albedoDemodulation, emissionBypass}; }
 };
 

@@ -1,7 +1,7 @@
 #include "affinity/precision.h"
 
 #include "affinity/error.h"
-#include "bf16_gemm.h"
+#include "kernels/bf16_gemm.h"
 
 namespace affinity {
 

@@ -1,4 +1,4 @@
-#include "unet_layers.h"
+#include "network/unet_layers.h"
 
 #include <algorithm>
 #include <cstring>

@@ -5,10 +5,10 @@
 // and vectorised; results do not depend on the thread count.
 #include <optional>
 
-#include "conv_kernel.h"
-#include "feature_map.h"
-#include "upsampled_conv.h"
-#include "winograd_conv.h"
+#include "kernels/conv_kernel.h"
+#include "kernels/feature_map.h"
+#include "kernels/upsampled_conv.h"
+#include "kernels/winograd_conv.h"
 
 namespace affinity {
 

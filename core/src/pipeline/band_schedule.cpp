@@ -1,4 +1,4 @@
-#include "band_schedule.h"
+#include "pipeline/band_schedule.h"
 
 #include <algorithm>
 #include <numeric>

@@ -9,15 +9,15 @@
 #include <cstring>
 
 #include "affinity/error.h"
-#include "affinity_filter.h"
-#include "bilinear_warp.h"
-#include "catmull_rom_warp.h"
-#include "band_schedule.h"
-#include "exposure.h"
-#include "fast_exp.h"
-#include "feature_map_pool.h"
-#include "filter_signal.h"
-#include "network.h"
+#include "kernels/affinity_filter.h"
+#include "kernels/bilinear_warp.h"
+#include "kernels/catmull_rom_warp.h"
+#include "pipeline/band_schedule.h"
+#include "pipeline/exposure.h"
+#include "kernels/fast_exp.h"
+#include "pipeline/feature_map_pool.h"
+#include "network/filter_signal.h"
+#include "network/network.h"
 
 namespace affinity {
 namespace {

@@ -1,4 +1,4 @@
-#include "exposure.h"
+#include "pipeline/exposure.h"
 
 #include <algorithm>
 #include <cmath>

@@ -3,7 +3,7 @@
 // before the embedding takes its log, so that a scene lit far brighter or dimmer than the training
 // scenes is denoised as the brightest or dimmest of those (the filters themselves are linear in
 // the radiance and see it unscaled).
-#include "embedding.h"
+#include "network/embedding.h"
 
 namespace affinity {
 

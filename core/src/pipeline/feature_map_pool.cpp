@@ -1,4 +1,4 @@
-#include "feature_map_pool.h"
+#include "pipeline/feature_map_pool.h"
 
 #include <utility>
 

@@ -4,7 +4,7 @@
 // as a convolution layer at 1080p). Peak memory is the largest set of maps alive at once.
 #include <vector>
 
-#include "feature_map.h"
+#include "kernels/feature_map.h"
 
 namespace affinity {
 

@@ -12,7 +12,7 @@
 #include <string>
 
 #include "affinity/error.h"
-#include "fast_exp.h"
+#include "kernels/fast_exp.h"
 
 namespace affinity {
 namespace {
