@@ -21,6 +21,7 @@
 #include "affinity/frame_io.h"
 #include "affinity/model.h"
 #include "frame_convert.h"
+#include "pipeline/ablation.h"
 
 namespace py = pybind11;
 
@@ -389,7 +390,8 @@ PYBIND11_MODULE(_core, m) {
 
     py::class_<Denoiser>(m, "Denoiser", "Stateful sequence denoiser (see affinity.Denoiser).")
         .def(py::init([](Model model, bool useHistory, bool temporalKernel, bool allKernels) {
-                 Denoiser denoiser(std::move(model), DenoiserOptions{useHistory, temporalKernel, allKernels});
+                 // The benchmark's ablations (affinity.Denoiser(ablation=...)): internal to the library.
+                 Denoiser denoiser = ablatedDenoiser(std::move(model), Ablation{useHistory, temporalKernel, allKernels});
                  denoiser.setInterruptCheck(pythonSignalRaised);
                  return denoiser;
              }),

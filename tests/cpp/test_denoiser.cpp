@@ -9,6 +9,7 @@
 
 #include "affinity/denoiser.h"
 #include "affinity/error.h"
+#include "pipeline/ablation.h"
 #include "random_model.h"
 
 using namespace affinity;
@@ -238,7 +239,8 @@ Model identityFirstKernelsModel(unsigned seed) {
 
 TEST(DenoiserAblation, SingleFrameDenoisesEveryFrameAlone) {
     auto frames = withTheFirstFramesRadiance(test::randomSequence(3, 12, 10, 2, 8));
-    Denoiser ablated(randomModel(), DenoiserOptions{.useHistory = false}), fresh(randomModel()), full(randomModel());
+    Denoiser ablated = ablatedDenoiser(randomModel(), {.useHistory = false});
+    Denoiser fresh(randomModel()), full(randomModel());
     ablated.denoise(frames[0]);
     full.denoise(frames[0]);
     DenoiseReport report;
@@ -252,8 +254,8 @@ TEST(DenoiserAblation, SingleFrameDenoisesEveryFrameAlone) {
 // it off must give exactly the single-frame result, and leaving it on must not.
 TEST(DenoiserAblation, NoTemporalKernelRemovesTheOnlyHistoryPathOfANonAccumulatingModel) {
     auto frames = withTheFirstFramesRadiance(test::randomSequence(2, 12, 10, 2, 9));
-    Denoiser withKernel(historyBlindModel(3, 0.0f)), withoutKernel(historyBlindModel(3, 0.0f), {.temporalKernel = false}),
-        single(historyBlindModel(3, 0.0f));
+    Denoiser withKernel(historyBlindModel(3, 0.0f)), single(historyBlindModel(3, 0.0f));
+    Denoiser withoutKernel = ablatedDenoiser(historyBlindModel(3, 0.0f), {.temporalKernel = false});
     withKernel.denoise(frames[0]);
     withoutKernel.denoise(frames[0]);
     const std::vector<float> alone = single.denoise(frames[1]);
@@ -266,8 +268,9 @@ TEST(DenoiserAblation, NoTemporalKernelRemovesTheOnlyHistoryPathOfANonAccumulati
 TEST(DenoiserAblation, OneKernelSkipsTheDilatedKernelsBeforeTheLast) {
     auto frames = test::randomSequence(2, 12, 10, 2, 10);
     for (int t = 0; t < 2; ++t) {
-        Denoiser all(identityFirstKernelsModel(4)), last(identityFirstKernelsModel(4), {.allKernels = false});
-        Denoiser randomAll(randomModel(4)), randomLast(randomModel(4), {.allKernels = false});
+        Denoiser all(identityFirstKernelsModel(4)), randomAll(randomModel(4));
+        Denoiser last = ablatedDenoiser(identityFirstKernelsModel(4), {.allKernels = false});
+        Denoiser randomLast = ablatedDenoiser(randomModel(4), {.allKernels = false});
         auto run = [&](Denoiser& denoiser) {  // frame t, after the frames before it
             for (int i = 0; i < t; ++i) denoiser.denoise(frames[std::size_t(i)]);
             return denoiser.denoise(frames[std::size_t(t)]);

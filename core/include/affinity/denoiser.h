@@ -31,17 +31,11 @@ struct DenoiseReport {
     std::size_t bufferBytes = 0;
 };
 
-// Parts of the trained pipeline switched off at inference, for the ablation rows of the
-// benchmark. The defaults run the model as trained.
-struct DenoiserOptions {
-    bool useHistory = true;      // false: every frame denoised on its own (single-frame mode)
-    bool temporalKernel = true;  // false: the last kernel has no taps into the previous output
-    bool allKernels = true;      // false: only the last (widest) kernel filters, K = 1
-};
+struct Ablation;  // core/src/pipeline/ablation.h: internal, for the benchmark
 
 class Denoiser {
 public:
-    explicit Denoiser(Model model = Model::builtIn(), DenoiserOptions options = {});
+    explicit Denoiser(Model model = Model::builtIn());
     ~Denoiser();
     Denoiser(Denoiser&&) noexcept;
     Denoiser& operator=(Denoiser&&) noexcept;
@@ -90,9 +84,9 @@ public:
     void setInterruptCheck(std::function<bool()> check);
 
     const Model& model() const;
-    const DenoiserOptions& options() const;
 
 private:
+    friend Denoiser ablatedDenoiser(Model model, const Ablation& ablation);
     struct State;
     std::unique_ptr<State> state_;
 };

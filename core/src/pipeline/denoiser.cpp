@@ -12,6 +12,7 @@
 #include "affinity/error.h"
 #include "network/filter_signal.h"
 #include "network/network.h"
+#include "pipeline/ablation.h"
 #include "pipeline/feature_map_pool.h"
 #include "pipeline/frame_input.h"
 #include "pipeline/sequence_history.h"
@@ -21,7 +22,7 @@ namespace affinity {
 
 struct Denoiser::State {
     Model model;
-    DenoiserOptions options;
+    Ablation ablation;  // ablation.h: all on but for the benchmark's ablations
     SequenceHistory history;
     FrameInput input;
     // Every map of a frame but the history's comes from the pool and goes back as soon as it is
@@ -32,7 +33,7 @@ struct Denoiser::State {
     std::atomic<bool> busy{false};
     InterruptCheck interrupted;
 
-    State(Model m, DenoiserOptions o) : model(std::move(m)), options(o) {}
+    explicit State(Model m) : model(std::move(m)) {}
     // A frame left half-done (interrupted, or failed) leaves histories that do not fit
     // together: the next frame starts a new sequence.
     template <typename Pipeline>
@@ -77,13 +78,18 @@ private:
 
 }  // namespace
 
-Denoiser::Denoiser(Model model, DenoiserOptions options) : state_(std::make_unique<State>(std::move(model), options)) {}
+Denoiser::Denoiser(Model model) : state_(std::make_unique<State>(std::move(model))) {}
 Denoiser::~Denoiser() = default;
 Denoiser::Denoiser(Denoiser&&) noexcept = default;
 Denoiser& Denoiser::operator=(Denoiser&&) noexcept = default;
 
+Denoiser ablatedDenoiser(Model model, const Ablation& ablation) {
+    Denoiser denoiser(std::move(model));
+    denoiser.state_->ablation = ablation;
+    return denoiser;
+}
+
 const Model& Denoiser::model() const { return state_->model; }
-const DenoiserOptions& Denoiser::options() const { return state_->options; }
 
 void Denoiser::reset() {
     const Exclusive call(state_->busy, "reset");
@@ -181,7 +187,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     local.invalidRadiance = frame.invalidRadiance;
     // The history where it can apply (not across a cut, a size change, or with it switched off).
     const bool useHistory =
-        history.startFrame(width, height, info, frame.meanDepth(), options.useHistory, local.resetReason);
+        history.startFrame(width, height, info, frame.meanDepth(), ablation.useHistory, local.resetReason);
     local.usedHistory = useHistory;
     Stages stages(net, pool, interrupted);
 
@@ -193,7 +199,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     UnetTail tail = stages.unet(frame.embedding, accumulated.embedding);
     clock.mark("u-net");
     // 5-7. Kernel parameters, accumulation and kernels, band by band.
-    const KernelChoice kernels{useHistory && options.temporalKernel, options.allKernels};
+    const KernelChoice kernels{useHistory && ablation.temporalKernel, ablation.allKernels};
     stages.filterInBands(tail, frame.embedding, frame.signal, accumulated, motion, valid, kernels, history, clock);
     stages.give(tail);
     pool.give(frame.embedding);

@@ -1,0 +1,19 @@
+#pragma once
+// Parts of the trained pipeline switched off at inference, for the ablation rows of the benchmark
+// (docs/BENCHMARK.md; Python: affinity.Denoiser(ablation=...)). Internal: measuring what a part
+// buys is not something a user of the library asks for, so core/include does not offer it.
+#include "affinity/denoiser.h"
+
+namespace affinity {
+
+// The defaults run the model as trained.
+struct Ablation {
+    bool useHistory = true;      // false: every frame denoised on its own (single-frame mode)
+    bool temporalKernel = true;  // false: the last kernel has no taps into the previous output
+    bool allKernels = true;      // false: only the last (widest) kernel filters, K = 1
+};
+
+// A Denoiser of `model` with the parts `ablation` switches off.
+Denoiser ablatedDenoiser(Model model, const Ablation& ablation);
+
+}  // namespace affinity
