@@ -5,7 +5,7 @@
 // process, so that peak memory is that model's.
 //
 //   bench_denoiser [--model FILE.affw] [--size 1920x1080] [--spp 4] [--frames 6] [--threads N]
-//                  [--stream 1 | --lend 1] [--precision fp32|bf16]
+//                  [--stream 1 | --lend 1] [--precision fp32|bf16|auto]
 //
 // --stream 1 feeds each frame one sample at a time (Denoiser::addSamples, as the Blender
 // extension does), so only one sample's features are held: the input is then 1/spp the size.
@@ -13,7 +13,9 @@
 // `affinity denoise` reads frame files), whose memory serves the later stages once embedded.
 //
 // --precision bf16 takes the Winograd convolutions' and the embedding's products in bfloat16
-// (affinity/precision.h; CPUs with AVX512-BF16).
+// (affinity/precision.h; CPUs with AVX512-BF16). The default here is fp32, not the library's
+// auto, so that a row measures the same arithmetic on every machine (bench_denoiser.sh asks for
+// bf16 rows by name).
 //
 // Prints one JSON object. Content of the frame does not matter for speed: plausible random
 // features with a small motion everywhere.
@@ -40,7 +42,7 @@ struct Options {
     std::string model;  // empty: the built-in model
     int width = 1920, height = 1080, spp = 4, frames = 6, threads = 0;
     bool stream = false, lend = false;
-    Precision precision = Precision::Float32;
+    Precision precision = Precision::Float32;  // not Auto: see above
 };
 
 Options parse(int argc, char** argv) {

@@ -44,7 +44,7 @@ nlohmann::json errors(const std::vector<float>& image, const std::vector<float>&
 
 int denoiseCommand(const std::vector<std::string>& args) {
     const Arguments a(args, {"--in", "--out", "--model", "--precision"}, {"--force"});
-    const Precision precision = precisionFromName(a.has("--precision") ? a.text("--precision") : "fp32");
+    const Precision precision = precisionFromName(a.has("--precision") ? a.text("--precision") : "auto");
     const fs::path in = a.text("--in"), out = a.text("--out");
     const std::vector<std::string> frames = listFrameFiles(in.string());
     if (frames.empty()) throw Error("input folder " + in.string() + " holds no frame files (frame_NNNN.exr)");
@@ -105,7 +105,7 @@ int denoiseCommand(const std::vector<std::string>& args) {
     const bool interrupted = done < frames.size();
     const nlohmann::json summary = {{"input", in.string()},
                                     {"model", denoiser.model().source()},
-                                    {"precision", precisionName(precision)},
+                                    {"precision", precisionName(denoiser.model().precision())},  // auto resolved
                                     {"frames", done},
                                     {"input_frames", frames.size()},
                                     {"interrupted", interrupted},

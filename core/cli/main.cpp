@@ -28,11 +28,12 @@ const char* const kRenderUsage =
     "  --force                replace the sequence already in DIR\n";
 
 const char* const kDenoiseUsage =
-    "usage: affinity denoise --in DIR --out DIR [--model FILE.affw] [--precision fp32|bf16] [--force]\n"
+    "usage: affinity denoise --in DIR --out DIR [--model FILE.affw] [--precision auto|fp32|bf16] [--force]\n"
     "Denoises the frames of --in in order into --out (denoised_NNNN.exr, denoised_NNNN.png,\n"
     "denoise_summary.json); inputs are never overwritten.\n"
     "  --model FILE.affw      weights file (default: the built-in model)\n"
-    "  --precision P          fp32 (default) or bf16 (CPUs with AVX512-BF16)\n"
+    "  --precision P          the network's products: auto (default: bf16 where the CPU has\n"
+    "                         AVX512-BF16, else fp32), fp32, or bf16 (CPUs with AVX512-BF16)\n"
     "  --force                write into an --out folder that already exists\n";
 
 void printUsage(std::FILE* to) {
@@ -43,7 +44,7 @@ void printUsage(std::FILE* to) {
                  "           --scene NAME_OR_FILE --frames N --spp S --size WxH --reference-spp R\n"
                  "           --seed K --out DIR [--first-frame F] [--compression none|zip|piz]\n"
                  "           [--feature-convention renderer|cycles] [--previews] [--force]\n"
-                 "  denoise  denoise a frame sequence: --in DIR --out DIR [--model FILE.affw] [--precision fp32|bf16] [--force]\n"
+                 "  denoise  denoise a frame sequence: --in DIR --out DIR [--model FILE.affw] [--precision auto|fp32|bf16] [--force]\n"
                  "'affinity <command> --help' describes a command's options.\n");
 }
 

@@ -149,9 +149,11 @@ class Denoiser:
     one call at a time: a call from another thread while one runs raises ``affinity.Error``
     (give each thread its own Denoiser). It cannot be copied or pickled.
 
-    ``precision`` "bf16" takes the convolutions' products in bfloat16 on CPUs that have
-    AVX512-BF16 (``affinity.bfloat16_supported()``): 0.76-0.78x the time on Zen 4, SMAPE within 0.1 %
-    (docs/MODEL.md section 10); a model given as a ``Model`` keeps its own precision.
+    ``precision`` is the arithmetic of the network's products: "auto" (the default) takes them
+    in bfloat16 where the CPU has AVX512-BF16 (``affinity.bfloat16_supported()``; faster, SMAPE and
+    temporal error equal to the fourth digit: docs/MODEL.md, "bfloat16 products") and in FP32
+    elsewhere; "fp32" and "bf16" ask for one ("bf16" raises ``affinity.Error`` on other CPUs).
+    ``model.precision`` says which ran. A model given as a ``Model`` keeps its own precision.
 
     ``ablation`` switches off one part of the trained pipeline, for measuring what it buys:
     "single_frame" (no history: every frame denoised on its own), "no_temporal_kernel" (the
@@ -166,7 +168,7 @@ class Denoiser:
         model: str | os.PathLike[str] | Model | None = None,
         *,
         ablation: str | None = None,
-        precision: str = "fp32",
+        precision: str = "auto",
     ) -> None:
         if model is None:
             model = Model.built_in(precision)

@@ -371,14 +371,17 @@ PYBIND11_MODULE(_core, m) {
     py::class_<Model>(m, "Model", "A denoising model (weights + structure), see docs/MODEL.md.")
         .def_static(
             "built_in", [](const std::string& precision) { return Model::builtIn(precisionFromName(precision)); },
-            py::arg("precision") = "fp32",
-            "The default model compiled into the library; precision 'fp32' or 'bf16' (affinity.bfloat16_supported()).")
+            py::arg("precision") = "auto",
+            "The default model compiled into the library; precision 'auto' (bf16 where "
+            "affinity.bfloat16_supported(), else fp32), 'fp32' or 'bf16'.")
         .def_static(
             "from_file",
             [](const std::filesystem::path& path, const std::string& precision) {
                 return Model::fromFile(path.string(), precisionFromName(precision));
             },
-            py::arg("path"), py::arg("precision") = "fp32", "Loads a .affw weights file.")
+            py::arg("path"), py::arg("precision") = "auto",
+            "Loads a .affw weights file; precision as for built_in.")
+        // What it computes in: 'fp32' or 'bf16' ('auto' resolved).
         .def_property_readonly("precision", [](const Model& model) { return std::string(precisionName(model.precision())); })
         .def_property_readonly("source", &Model::source)
         .def_property_readonly("kernels", &Model::kernels)

@@ -17,7 +17,8 @@ using namespace affinity;
 namespace {
 
 Model randomModel(unsigned seed = 1, float lambdaBias = 0.0f, float temporalBias = 0.0f) {
-    return Model::fromWeights(test::randomWeights(test::ModelShape{}, seed, lambdaBias, temporalBias));
+    return Model::fromWeights(test::randomWeights(test::ModelShape{}, seed, lambdaBias, temporalBias),
+                              Precision::Float32);
 }
 
 // The same shape with every signal option: demodulated diffuse and specular filtered, emissive
@@ -26,7 +27,7 @@ Model randomModel(unsigned seed, bool albedoDemodulation) {
     test::ModelShape shape;
     shape.albedoDemodulation = albedoDemodulation;
     shape.emissionBypass = albedoDemodulation;
-    return Model::fromWeights(test::randomWeights(shape, seed));
+    return Model::fromWeights(test::randomWeights(shape, seed), Precision::Float32);
 }
 
 // A model that cannot see history: lambda = 0, the U-Net's history input channels zeroed and
@@ -41,7 +42,8 @@ Model historyBlindModel(unsigned seed, float temporalBias = 1e6f) {
                 for (std::int64_t i = embedding; i < 2 * embedding; ++i)
                     std::fill_n(t.floats.begin() + (o * t.shape[1] + i) * 9, 9, 0.0f);
     auto bytes = train::serializeWeights(tensors);
-    return Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "history-blind model"));
+    return Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "history-blind model"),
+                              Precision::Float32);
 }
 
 double maxRelativeDifference(const std::vector<float>& a, const std::vector<float>& b) {
@@ -67,7 +69,7 @@ TEST(Denoiser, ModelStructureComesFromTheWeights) {
     shape.kernels = 2;
     shape.affinityFeatures = 5;
     shape.tapSize = 3;
-    Model model = Model::fromWeights(test::randomWeights(shape, 3));
+    Model model = Model::fromWeights(test::randomWeights(shape, 3), Precision::Float32);
     EXPECT_EQ(model.kernels(), 2);
     EXPECT_EQ(model.affinityFeatures(), 5);
     EXPECT_EQ(model.tapSize(), 3);
@@ -124,7 +126,8 @@ TEST(Denoiser, WeightsWithARemovedSwitchOnAreRefusedNamingIt) {
         tensors.back().ints = {0};
         bytes = train::serializeWeights(tensors);
         const Weights off = Weights::fromMemory(bytes.data(), bytes.size(), "off.affw");
-        Denoiser withSwitchOff(Model::fromWeights(off)), plain(Model::fromWeights(test::randomWeights(shape, 1)));
+        Denoiser withSwitchOff(Model::fromWeights(off, Precision::Float32)),
+            plain(Model::fromWeights(test::randomWeights(shape, 1), Precision::Float32));
         for (const SampleFrame& frame : test::randomSequence(2, 9, 7, 2, 5))
             EXPECT_EQ(withSwitchOff.denoise(frame), plain.denoise(frame));
     }
@@ -234,7 +237,8 @@ Model identityFirstKernelsModel(unsigned seed) {
         if (t.name == "unet.head.bias")
             for (int k = 0; k + 1 < shape.kernels; ++k) t.floats[std::size_t(k * (shape.affinityFeatures + 2) + shape.affinityFeatures)] += 1e4f;
     auto bytes = train::serializeWeights(tensors);
-    return Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "identity-first-kernels model"));
+    return Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "identity-first-kernels model"),
+                              Precision::Float32);
 }
 
 TEST(DenoiserAblation, SingleFrameDenoisesEveryFrameAlone) {
@@ -352,8 +356,42 @@ TEST(DenoiserBFloat16, WithoutTheInstructionsItIsAnErrorThatSaysSo) {
 TEST(DenoiserBFloat16, PrecisionNamesRoundTripAndOthersAreRejected) {
     EXPECT_EQ(precisionFromName("fp32"), Precision::Float32);
     EXPECT_EQ(precisionFromName("bf16"), Precision::BFloat16);
+    EXPECT_EQ(precisionFromName("auto"), Precision::Auto);
+    for (Precision p : {Precision::Auto, Precision::Float32, Precision::BFloat16})
+        EXPECT_EQ(precisionFromName(precisionName(p)), p);
     EXPECT_STREQ(precisionName(Precision::BFloat16), "bf16");
     EXPECT_THROW(precisionFromName("fp16"), Error);
+}
+
+// The default (auto) computes in bfloat16 exactly where the CPU has AVX512-BF16 and in FP32
+// elsewhere, for every way to make a model; asking for FP32 overrides it.
+TEST(DenoiserPrecision, TheDefaultIsBFloat16ExactlyWhereSupportedAndFp32OverridesIt) {
+    const Precision expected = bfloat16Supported() ? Precision::BFloat16 : Precision::Float32;
+    EXPECT_EQ(resolvePrecision(Precision::Auto), expected);
+    EXPECT_EQ(resolvePrecision(Precision::Float32), Precision::Float32);
+    const Weights weights = test::randomWeights(test::ModelShape{}, 4);
+    const std::string file = AFFINITY_SOURCE_DIR "/core/models/default.affw";
+    EXPECT_EQ(Model::builtIn().precision(), expected);
+    EXPECT_EQ(Model::fromFile(file).precision(), expected);
+    EXPECT_EQ(Model::fromWeights(weights).precision(), expected);
+    EXPECT_EQ(Denoiser().model().precision(), expected);
+    EXPECT_EQ(Model::builtIn(Precision::Auto).precision(), expected);
+    EXPECT_EQ(Model::builtIn(Precision::Float32).precision(), Precision::Float32);
+    EXPECT_EQ(Model::fromFile(file, Precision::Float32).precision(), Precision::Float32);
+    EXPECT_EQ(Model::fromWeights(weights, Precision::Float32).precision(), Precision::Float32);
+    EXPECT_STREQ(precisionName(Model::builtIn().precision()), bfloat16Supported() ? "bf16" : "fp32");
+    // The outputs too: the default's are the resolved precision's, bit for bit.
+    auto frames = test::randomSequence(2, 37, 21, 3, 9);
+    Denoiser byDefault(Model::fromWeights(weights)), resolved(Model::fromWeights(weights, expected)),
+        fp32(Model::fromWeights(weights, Precision::Float32));
+    for (const SampleFrame& frame : frames) {
+        const std::vector<float> out = byDefault.denoise(frame);
+        EXPECT_EQ(out, resolved.denoise(frame));
+        if (bfloat16Supported())
+            EXPECT_NE(out, fp32.denoise(frame)) << "the default computed in FP32 on a CPU with AVX512-BF16";
+        else
+            EXPECT_EQ(out, fp32.denoise(frame));
+    }
 }
 
 TEST(Denoiser, BadRadianceGivesFiniteOutputAndAWarningCount) {
@@ -785,7 +823,7 @@ TEST(DenoiserLentBands, MisuseIsAnErrorAndDiscardingStartsOver) {
 // built-in model they grow by 2.24 MB for a 5.53 MB input here, by 267 MiB for 570 at 1080p.
 TEST(DenoiserLentBands, TheBandsMemoryServesTheLaterMaps) {
     auto frames = test::randomSequence(4, 160, 120, 4, 33);
-    Denoiser whole(Model::builtIn()), lending(Model::builtIn());
+    Denoiser whole(Model::builtIn(Precision::Float32)), lending(Model::builtIn(Precision::Float32));
     std::vector<std::size_t> wholeBytes, lentBytes;
     for (const SampleFrame& frame : frames) {
         DenoiseReport report;

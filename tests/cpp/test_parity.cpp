@@ -31,7 +31,7 @@ double maxRelativeDifference(const std::vector<float>& a, const std::vector<floa
 
 void expectParity(const std::string& weightsPath, const std::vector<SampleFrame>& frames) {
     const std::vector<std::vector<float>> expected = train::torchDenoiseSequence(weightsPath, frames);
-    Denoiser denoiser(Model::fromFile(weightsPath));
+    Denoiser denoiser(Model::fromFile(weightsPath, Precision::Float32));  // libtorch computes in FP32
     ASSERT_EQ(expected.size(), frames.size());
     for (std::size_t t = 0; t < frames.size(); ++t) {
         std::vector<float> actual = denoiser.denoise(frames[t]);
@@ -122,7 +122,7 @@ TEST(Parity, WideningATrainedModelKeepsTheFunction) {
     const Weights grown = Weights::fromFile(wide);
     EXPECT_GT(grown.tensor("unet.dec0.conv0.weight").count, trained.tensor("unet.dec0.conv0.weight").count);
     const std::vector<SampleFrame> frames = test::randomSequence(3, 37, 29, 4, 21);
-    Denoiser before(Model::fromFile(original)), after(Model::fromFile(wide));
+    Denoiser before(Model::fromFile(original, Precision::Float32)), after(Model::fromFile(wide, Precision::Float32));
     for (std::size_t t = 0; t < frames.size(); ++t)
         EXPECT_LT(maxRelativeDifference(after.denoise(frames[t]), before.denoise(frames[t])), 1e-5) << "frame " << t;
     expectParity(wide, frames);

@@ -66,7 +66,7 @@ double meanSmape(const std::vector<std::vector<float>>& outputs, const std::vect
 double sequenceRatio(const std::vector<SampleFrame>& frames) {
     std::vector<std::vector<float>> noisy;
     for (const SampleFrame& frame : frames) noisy.push_back(frame.meanRadiance());
-    const double denoised = meanSmape(denoiseAll(Model::builtIn(), frames), frames), input = meanSmape(noisy, frames);
+    const double denoised = meanSmape(denoiseAll(Model::builtIn(Precision::Float32), frames), frames), input = meanSmape(noisy, frames);
     std::cout << "glossy: SMAPE noisy " << input << ", denoised " << denoised << ", ratio " << denoised / input << "\n";
     return denoised / input;
 }
@@ -87,7 +87,7 @@ TEST(DefaultModelQuality, BFloat16KeepsTheQuality) {
     if (!bfloat16Supported()) GTEST_SKIP() << "no AVX512-BF16 on this CPU";
     const std::vector<SampleFrame>& frames = glossySequence();
     ASSERT_EQ(frames.size(), 4u);
-    const auto fp32 = denoiseAll(Model::builtIn(), frames);
+    const auto fp32 = denoiseAll(Model::builtIn(Precision::Float32), frames);
     const auto bf16 = denoiseAll(Model::builtIn(Precision::BFloat16), frames);
     const double fp32Error = meanSmape(fp32, frames), bf16Error = meanSmape(bf16, frames);
     double apart = 0;

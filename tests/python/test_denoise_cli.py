@@ -173,6 +173,14 @@ def test_the_cli_takes_a_precision_and_names_a_wrong_one(frames_dir: pathlib.Pat
     wrong = denoise("--in", str(frames_dir), "--out", str(tmp_path / "o1"), "--precision", "fp16")
     assert wrong.returncode != 0 and "unknown precision 'fp16'" in wrong.stderr
     assert not (tmp_path / "o1").exists()
+    # The default is auto: bf16 exactly where the CPU has AVX512-BF16; --precision fp32 overrides it.
+    expected = "bf16" if affinity.bfloat16_supported() else "fp32"
+    cases = (((), expected), (("--precision", "auto"), expected), (("--precision", "fp32"), "fp32"))
+    for arguments, precision in cases:
+        out = tmp_path / f"o-{'-'.join(arguments) or 'default'}"
+        run = denoise("--in", str(frames_dir), "--out", str(out), *arguments)
+        assert run.returncode == 0, run.stderr
+        assert json.loads((out / "denoise_summary.json").read_text())["precision"] == precision, arguments
     done = denoise("--in", str(frames_dir), "--out", str(tmp_path / "bf16"), "--precision", "bf16")
     if not affinity.bfloat16_supported():
         assert done.returncode != 0 and "AVX512-BF16" in done.stderr

@@ -84,7 +84,7 @@ def test_bf16_precision_is_close_to_fp32_or_refused_by_name(sequence: list[dict]
         with pytest.raises(affinity.Error, match="AVX512-BF16"):
             affinity.Denoiser(precision="bf16")
         return
-    fp32, bf16 = affinity.Denoiser(), affinity.Denoiser(precision="bf16")
+    fp32, bf16 = affinity.Denoiser(precision="fp32"), affinity.Denoiser(precision="bf16")
     assert (fp32.model.precision, bf16.model.precision) == ("fp32", "bf16")
     for frame in sequence:
         a, b = fp32.denoise(frame), bf16.denoise(frame)
@@ -92,6 +92,20 @@ def test_bf16_precision_is_close_to_fp32_or_refused_by_name(sequence: list[dict]
         # 8 significant bits in the products' factors, FP32 sums: the images stay within a few
         # thousandths of each other (SMAPE 6e-4 on the benchmark's scenes).
         assert np.mean(np.abs(a - b) / (np.abs(a) + np.abs(b) + 1e-2)) < 3e-3
+
+
+def test_the_default_precision_is_bf16_exactly_where_supported_and_fp32_overrides_it(sequence: list[dict]) -> None:
+    expected = "bf16" if affinity.bfloat16_supported() else "fp32"
+    model_file = pathlib.Path(__file__).parents[2] / "core" / "models" / "default.affw"
+    assert affinity.Denoiser().model.precision == expected
+    assert affinity.Denoiser(model_file).model.precision == expected
+    assert affinity.Model.built_in().precision == affinity.Model.from_file(model_file).precision == expected
+    assert affinity.Denoiser(precision="auto").model.precision == expected
+    assert affinity.Denoiser(precision="fp32").model.precision == "fp32"
+    assert affinity.Denoiser(model_file, precision="fp32").model.precision == "fp32"
+    by_default, resolved = affinity.Denoiser(), affinity.Denoiser(precision=expected)
+    for frame in sequence:
+        np.testing.assert_array_equal(by_default.denoise(frame), resolved.denoise(frame))
 
 
 def test_ablations_are_named_and_unknown_ones_refused():

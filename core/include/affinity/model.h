@@ -14,12 +14,13 @@ struct Network;
 
 class Model {
 public:
-    // The default model compiled into the library. `precision`: affinity/precision.h; BFloat16
-    // throws affinity::Error where !bfloat16Supported().
-    static Model builtIn(Precision precision = Precision::Float32);
+    // The default model compiled into the library. `precision` (affinity/precision.h): Auto,
+    // the default, computes in bfloat16 where the CPU has AVX512-BF16 and in FP32 elsewhere;
+    // BFloat16 throws affinity::Error where !bfloat16Supported().
+    static Model builtIn(Precision precision = Precision::Auto);
     // Throws affinity::Error naming the file and what is wrong or inconsistent in it.
-    static Model fromFile(const std::string& path, Precision precision = Precision::Float32);
-    static Model fromWeights(const Weights& weights, Precision precision = Precision::Float32);
+    static Model fromFile(const std::string& path, Precision precision = Precision::Auto);
+    static Model fromWeights(const Weights& weights, Precision precision = Precision::Auto);
 
     const std::string& source() const;
     int kernels() const;           // K
@@ -27,7 +28,7 @@ public:
     int tapSize() const;           // T
     int embeddingChannels() const; // E
     std::int64_t parameterCount() const;
-    Precision precision() const;
+    Precision precision() const;  // what it computes in: Float32 or BFloat16, never Auto
     // Multiply-adds x 2 per pixel of the per-pixel network at `spp` samples per pixel.
     double flopsPerPixel(int spp) const;
 

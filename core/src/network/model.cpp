@@ -14,7 +14,7 @@ Model Model::builtIn(Precision precision) {
         return fromWeights(
             Weights::fromMemory(affinity_default_model, affinity_default_model_size, "built-in default model"), p);
     };
-    if (precision == Precision::BFloat16) {
+    if (resolvePrecision(precision) == Precision::BFloat16) {
         static const Model model = load(Precision::BFloat16);
         return model;
     }
@@ -27,7 +27,7 @@ Model Model::fromFile(const std::string& path, Precision precision) {
 }
 
 Model Model::fromWeights(const Weights& weights, Precision precision) {
-    return Model(std::make_shared<const Network>(buildNetwork(weights, precision)));
+    return Model(std::make_shared<const Network>(buildNetwork(weights, resolvePrecision(precision))));
 }
 
 const std::string& Model::source() const { return network_->source; }

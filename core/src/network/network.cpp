@@ -121,9 +121,10 @@ private:
 }  // namespace
 
 Network buildNetwork(const Weights& weights, Precision precision) {
+    precision = resolvePrecision(precision);
     if (precision == Precision::BFloat16 && !bfloat16Supported())
         throw Error("model " + weights.source() + ": bfloat16 precision needs a CPU with AVX512-BF16 (and an x86-64 "
-                    "build with AVX-512 kernels); this one has none: use FP32");
+                    "build with AVX-512 kernels); this one has none: use fp32 (or auto, which picks it)");
     Builder b(weights, precision);
     Network n;
     n.source = weights.source();

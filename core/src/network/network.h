@@ -28,7 +28,7 @@ struct Network {
     bool albedoDemodulation = false;  // the kernels filter diffuse / albedo and specular
     bool emissionBypass = false;      // emissive samples are accumulated but not filtered
     std::int64_t parameterCount = 0;
-    Precision precision = Precision::Float32;  // of the convolutions' products (affinity/precision.h)
+    Precision precision = Precision::Float32;  // of the products (affinity/precision.h), never Auto
 
     // Head channels per kernel: features, bandwidth, centre weight.
     int kernelChannels() const { return affinityFeatures + 2; }
@@ -40,6 +40,7 @@ struct Network {
 
 // Throws affinity::Error naming the source and the first inconsistency, or where
 // Precision::BFloat16 is asked for on a CPU without AVX512-BF16.
+// Precision::Auto is resolved (resolvePrecision).
 Network buildNetwork(const Weights& weights, Precision precision = Precision::Float32);
 
 }  // namespace affinity
