@@ -135,17 +135,16 @@ def set_denoiser_factory(factory: Callable[[str], SequenceDenoiser] | None) -> N
     _factory = factory
 
 
-def create_denoiser(model_path: str, fast_arithmetic: bool = False) -> SequenceDenoiser:
+def create_denoiser(model_path: str, precision: str = "auto") -> SequenceDenoiser:
     """A sequence denoiser for ``model_path`` ('' = the model built into the core).
 
-    ``fast_arithmetic`` takes the network's products in bfloat16 where this CPU has AVX512-BF16
-    (0.76-0.78x the time measured on Zen 4; docs/MODEL.md section 10) and in FP32 elsewhere, so that a .blend file saved with
-    it on still renders on any machine.
+    ``precision`` as the panel names it: "auto" takes the network's products in bfloat16 where
+    this CPU has AVX512-BF16 (docs/MODEL.md, "bfloat16 products") and in FP32 elsewhere, so that a
+    .blend file saved with it still renders on any machine; "fp32" everywhere.
     """
     if _factory is not None:
         return _factory(model_path)
     affinity = load_core()
-    precision = "bf16" if fast_arithmetic and affinity.bfloat16_supported() else "fp32"
     # The core reports a missing or corrupt model file with its own message.
     return affinity.Denoiser(os.path.abspath(model_path) if model_path else None, precision=precision)
 

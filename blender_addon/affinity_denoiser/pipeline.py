@@ -67,7 +67,7 @@ class Cancelled(RuntimeError):
 class Settings:
     samples_per_frame: int = 4
     model_path: str = ""
-    fast_arithmetic: bool = False
+    precision: str = "auto"
     temporal: bool = True
     output_folder: str = ""
     keep_sample_frames: bool = False
@@ -77,7 +77,7 @@ class Settings:
         return cls(
             samples_per_frame=props.samples_per_frame,
             model_path=props.model_path,
-            fast_arithmetic=props.fast_arithmetic,
+            precision=props.precision,
             temporal=props.temporal,
             output_folder=props.output_folder,
             keep_sample_frames=props.keep_sample_frames,
@@ -167,7 +167,7 @@ class DenoiseRender:
         problem = cycles_problem(scene)
         if problem:
             raise RuntimeError(problem)
-        denoiser = backend.create_denoiser(self.settings.model_path, self.settings.fast_arithmetic)
+        denoiser = backend.create_denoiser(self.settings.model_path, self.settings.precision)
         if self.settings.keep_sample_frames:
             backend.load_core(need_denoiser=False)  # the core writes frame files: fail early
         motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())  # fail early

@@ -41,12 +41,18 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
         default="",
         subtype="FILE_PATH",
     )
-    fast_arithmetic: bpy.props.BoolProperty(
-        name="Fast Arithmetic",
-        description="Compute the network's products in bfloat16 on CPUs with AVX512-BF16 (Zen 4, "
-        "Sapphire Rapids and later): about a fifth faster, the same quality within 0.5 %; other CPUs "
-        "compute in full precision",
-        default=False,
+    # The name and values of the CLI's --precision and Python's precision= (affinity/precision.h).
+    # Replaces the boolean "Fast Arithmetic": a .blend that stored it on gets "auto", which is
+    # what it meant; one that stored it off gets the new default, auto.
+    precision: bpy.props.EnumProperty(
+        name="Precision",
+        description="Arithmetic of the network's products",
+        items=[
+            ("auto", "Auto", "bfloat16 on CPUs with AVX512-BF16 (Zen 4, Sapphire Rapids and later): "
+             "faster, the same quality to the fourth digit; FP32 on other CPUs, so the file renders anywhere"),
+            ("fp32", "FP32", "Full precision on every CPU: the same bits on every machine"),
+        ],
+        default="auto",
     )
     temporal: bpy.props.BoolProperty(
         name="Temporal",

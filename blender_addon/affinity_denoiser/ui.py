@@ -29,7 +29,7 @@ class AFFINITY_DENOISER_PT_render(bpy.types.Panel):
         column = layout.column()
         column.prop(settings, "samples_per_frame")
         column.prop(settings, "model_path")
-        column.prop(settings, "fast_arithmetic")
+        column.prop(settings, "precision")
         column.prop(settings, "temporal")
         column.prop(settings, "output_folder")
         column.prop(settings, "keep_sample_frames")

@@ -130,7 +130,7 @@ def test_panel_draws_every_setting_and_both_operators() -> None:
     assert panel_class.poll(context)
     fake = type("Panel", (), {"layout": _Layout()})()
     panel_class.draw(fake, context)
-    assert fake.layout.drawn[:6] == ["samples_per_frame", "model_path", "fast_arithmetic", "temporal",
+    assert fake.layout.drawn[:6] == ["samples_per_frame", "model_path", "precision", "temporal",
                                      "output_folder", "keep_sample_frames"]
     assert "affinity_denoiser.render_frame" in fake.layout.drawn
     assert "affinity_denoiser.render_animation" in fake.layout.drawn

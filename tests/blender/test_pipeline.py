@@ -259,9 +259,10 @@ def test_streamed_samples_give_what_the_core_gives_on_the_kept_frames(run: dict[
         assert np.abs(streamed.denoised - kept.denoised).max() <= 0.02 * np.abs(kept.denoised).max()
 
 
-def test_fast_arithmetic_uses_bfloat16_only_where_the_cpu_has_it(run: dict[str, Any], tmp_path: Any) -> None:
-    """The panel's Fast Arithmetic: bfloat16 products on CPUs with AVX512-BF16 (the same frames
-    within a few thousandths), FP32 elsewhere, so a .blend saved with it on renders anywhere."""
+def test_precision_auto_uses_bfloat16_only_where_the_cpu_has_it(run: dict[str, Any], tmp_path: Any) -> None:
+    """The panel's Precision: auto (the default) takes bfloat16 products on CPUs with AVX512-BF16
+    and FP32 elsewhere, so a .blend saved with it renders anywhere; fp32 overrides it (the same
+    frames within a few thousandths)."""
     from conftest import CORE_AVAILABLE
     if not CORE_AVAILABLE:
         pytest.skip("the affinity core is not importable")
@@ -269,16 +270,17 @@ def test_fast_arithmetic_uses_bfloat16_only_where_the_cpu_has_it(run: dict[str, 
     from affinity_denoiser import backend
 
     expected = "bf16" if affinity.bfloat16_supported() else "fp32"
-    assert backend.create_denoiser("", fast_arithmetic=True).model.precision == expected
-    assert backend.create_denoiser("").model.precision == "fp32"
-    assert pipeline.Settings.from_properties(bpy.context.scene.affinity_denoiser).fast_arithmetic is False
+    assert backend.create_denoiser("").model.precision == expected
+    assert backend.create_denoiser("", "auto").model.precision == expected
+    assert backend.create_denoiser("", "fp32").model.precision == "fp32"
+    assert pipeline.Settings.from_properties(bpy.context.scene.affinity_denoiser).precision == "auto"
 
     scene = bpy.context.scene
     scene.render.filepath = str(tmp_path / "render" / "frame_")
-    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings(fast_arithmetic=True))
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings(precision="fp32"))
     job.keep_frames = True  # as the fixture's job: whole frames, the same depth normalisation
     job.run()
-    for full, fast in zip(run["job"].results, job.results, strict=True):
-        a, b = full.denoised, fast.denoised
+    for automatic, fp32 in zip(run["job"].results, job.results, strict=True):
+        a, b = automatic.denoised, fp32.denoised
         assert np.isfinite(b).all()
         assert np.mean(np.abs(a - b) / (np.abs(a) + np.abs(b) + 1e-2)) < 3e-3
