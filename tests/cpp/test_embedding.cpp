@@ -219,7 +219,7 @@ TEST(Embedding, ThreadCountDoesNotChangeResults) {
     EXPECT_EQ(std::memcmp(one.data(), two.data(), one.size() * sizeof(float)), 0);
 }
 
-// Streaming (denoiser.cpp) finishes in place when the last layer keeps the width: every chunk
+// Streaming (pipeline/frame_input.cpp) finishes in place when the last layer keeps the width: every chunk
 // must be read before it is overwritten, whatever the threads do.
 TEST(Embedding, FinishInPlaceGivesApplysResultBitForBit) {
     std::mt19937 rng(6);
