@@ -17,8 +17,14 @@ import numpy as np
 
 from . import REPOSITORY, cycles, report
 from .config import CONFIGS, Config
-from .data import (DEFAULT_DATA_DIR, ensure_second_reference, ensure_sequence, find_affinity_binary, load_references,
-                   load_sequence)
+from .data import (
+    DEFAULT_DATA_DIR,
+    ensure_second_reference,
+    ensure_sequence,
+    find_affinity_binary,
+    load_references,
+    load_sequence,
+)
 from .evaluate import EQUAL_TIME_METHODS, SequenceResult, evaluate_sequence, reference_noise
 from .methods import BUILT_IN, Method, make_methods
 
@@ -47,14 +53,15 @@ def parse_arguments(argv: list[str]) -> argparse.Namespace:
                     "stability on the failure-case scenes. Speed at 1080p: scripts/bench_denoiser.sh.")
     parser.add_argument("--out", required=True, type=pathlib.Path, help="output folder (created)")
     parser.add_argument("--config", choices=sorted(CONFIGS), default="full",
-                        help="full (the documented benchmark), tiny (CI) or cycles (Blender renders, docs/CYCLES_DATA.md); default full")
+                        help="full (the documented benchmark), tiny (CI) or cycles (Blender renders, "
+                             "docs/CYCLES_DATA.md); default full")
     parser.add_argument("--data", type=pathlib.Path,
                         help=f"render cache (default $AFFINITY_BENCH_DATA or {DEFAULT_DATA_DIR}; for the "
                              f"cycles config $AFFINITY_DATA or {cycles.DEFAULT_DATA_DIR})")
     parser.add_argument("--affinity-bin", help="the affinity program (default $AFFINITY_BIN or <build>/core/affinity)")
     parser.add_argument("--model", type=parse_model, action="append", default=[], metavar="LABEL=PATH",
-                        help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model, PATH:bf16 the "
-                             "model with bfloat16 products (CPUs with AVX512-BF16). The first "
+                        help=f"a model of the ladder, repeatable; PATH '{BUILT_IN}' is the built-in model, "
+                             "PATH:bf16 the model with bfloat16 products (CPUs with AVX512-BF16). The first "
                              "one's ablations run too. Default: small=builtin and the ladder's other models in "
                              "core/models of this repository (tiny, medium)")
     parser.add_argument("--methods", help="comma-separated method labels to run (default: all)")
@@ -178,7 +185,8 @@ def save_outputs(folder: pathlib.Path, sequence: str, results: list[SequenceResu
 def crop_chart(results: list[SequenceResult], reference, sequence: str, spp: int, out: pathlib.Path) -> None:
     outputs = {r.method: r.last_output for r in results if r.spp == spp and r.last_output is not None}
     ours = next((r.method for r in results if r.family == "ours" and r.method in outputs), None)
-    panels = [(label, outputs[label]) for label in ("noisy", ours, cycles.BLENDER_OIDN, "oidn", "svgf") if label in outputs]
+    panels = [(label, outputs[label]) for label in ("noisy", ours, cycles.BLENDER_OIDN, "oidn", "svgf")
+              if label in outputs]
     if panels:
         report.chart_crops(panels, reference, ours or panels[0][0], sequence, spp, out / f"crops_{sequence}.png")
 

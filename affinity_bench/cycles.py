@@ -34,7 +34,8 @@ SUITE_TEXT = (
     f"`{MAKE_DATA}` through the Blender extension's own path (one-sample sub-renders, its features, motion and "
     "validity); an S-spp input is the first S sub-renders of each frame. Reference: the mean of two independent "
     "Cycles renders with other seeds (their spp in each sequence's render_summary.json; the reference noise below "
-    "scores one against the other). Render time at S spp: the capture's sub-renders, feature mapping and motion of a frame scaled by S/8; "
+    "scores one against the other). Render time at S spp: the capture's sub-renders, feature mapping and motion "
+    "of a frame scaled by S/8; "
     "`blender-oidn`'s time is Cycles rendering S samples and denoising, as one ordinary render. ")
 
 

@@ -109,7 +109,8 @@ def _at(results: list[SequenceResult], spp: int) -> list[SequenceResult]:
     return [r for r in results if r.spp == spp]
 
 
-def mean_over_sequences(results: list[SequenceResult], method: str, spp: int, value: Callable[[SequenceResult], float]) -> float:
+def mean_over_sequences(results: list[SequenceResult], method: str, spp: int,
+                        value: Callable[[SequenceResult], float]) -> float:
     values = [value(r) for r in results if r.method == method and r.spp == spp]
     return float(np.mean(values)) if values else float("nan")
 
@@ -119,7 +120,8 @@ def _summary_value(column: str) -> Callable[[SequenceResult], float]:
 
 
 def markdown_table(header: list[str], rows: list[list[str]]) -> str:
-    lines = ["| " + " | ".join(header) + " |", "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|"]
+    lines = ["| " + " | ".join(header) + " |",
+             "|" + "|".join("---" if i == 0 else "---:" for i in range(len(header))) + "|"]
     lines += ["| " + " | ".join(row) + " |" for row in rows]
     return "\n".join(lines) + "\n"
 
@@ -172,7 +174,8 @@ def per_scene_markdown(results: list[SequenceResult], spp: tuple[int, ...]) -> s
     return text
 
 
-def equal_time_points(results: list[SequenceResult], methods: list[str]) -> dict[str, list[tuple[int, float, float, float]]]:
+def equal_time_points(results: list[SequenceResult],
+                      methods: list[str]) -> dict[str, list[tuple[int, float, float, float]]]:
     """Per method: (spp, render s/frame, denoise s/frame, SMAPE), means over sequences."""
     points: dict[str, list[tuple[int, float, float, float]]] = {}
     for method in methods:
@@ -185,7 +188,8 @@ def equal_time_points(results: list[SequenceResult], methods: list[str]) -> dict
 
 
 def equal_time_markdown(points: dict[str, list[tuple[int, float, float, float]]]) -> str:
-    rows = [[f"`{m}`", str(s), f"{render * 1e3:.1f}", f"{denoise * 1e3:.1f}", f"{(render + denoise) * 1e3:.1f}", f"{e:.4f}"]
+    rows = [[f"`{m}`", str(s), f"{render * 1e3:.1f}", f"{denoise * 1e3:.1f}", f"{(render + denoise) * 1e3:.1f}",
+             f"{e:.4f}"]
             for m, values in points.items() for s, render, denoise, e in values]
     return markdown_table(["method", "spp", "render ms/frame", "denoise ms/frame", "total ms/frame", "SMAPE"], rows)
 
@@ -229,7 +233,8 @@ def chart_error_vs_time(results: list[SequenceResult], spp: int, path: pathlib.P
     save_figure(figure, path)
 
 
-def chart_temporal_error(results: list[SequenceResult], sequence: str, spp: tuple[int, ...], path: pathlib.Path) -> None:
+def chart_temporal_error(results: list[SequenceResult], sequence: str, spp: tuple[int, ...],
+                         path: pathlib.Path) -> None:
     plt = _pyplot()
     from matplotlib import ticker
     mine = [r for r in results if r.sequence == sequence and r.spp in spp]

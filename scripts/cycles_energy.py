@@ -81,7 +81,8 @@ def main(argv: list[str] | None = None) -> int:
     lines = [f"# Where the light goes on the Cycles suite (model `{label}`)", "",
              f"Command: `{' '.join([os.path.basename(sys.argv[0])] + (argv if argv is not None else sys.argv[1:]))}`",
              "(scripts/cycles_energy.py; brightness = sequence mean / reference mean, luminance).", "",
-             "| sequence | spp | noisy | ours | Blender's OIDN | reference half A / B (frames) | top 1 % share | ours kept (top 1 %) |",
+             "| sequence | spp | noisy | ours | Blender's OIDN | reference half A / B (frames) | top 1 % share "
+             "| ours kept (top 1 %) |",
              "|---|---:|---:|---:|---:|---|---:|---|"]
     for folder in folders:
         for spp in args.spp:

@@ -2,7 +2,8 @@
 pixel, core ms per 1080p frame, and SMAPE / PSNR / FLIP / temporal error at every benchmarked
 spp, with the inference ablations of the default model and the baselines as reference rows.
 
-    .venv/bin/python scripts/model_ladder.py results/bench/results.csv results/speed_1080p.jsonl [MORE.jsonl ...] > results/ladder.md
+    .venv/bin/python scripts/model_ladder.py results/bench/results.csv results/speed_1080p.jsonl [MORE.jsonl ...] \
+        > results/ladder.md
 
 Inputs: the benchmark's results.csv (python -m affinity_bench, mean over its sequences) and
 the JSON lines of one or more runs of scripts/bench_denoiser.sh (BENCH_JSON=FILE), whose labels

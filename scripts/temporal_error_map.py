@@ -58,7 +58,8 @@ def main(sequence_dir: str, spp: int, model: str | None) -> None:
     order = np.argsort(per_pixel.ravel())[::-1]
     total = per_pixel.sum()
     for count in (10, 50, 200):
-        print(f"  the worst {count} of {per_pixel.size} pixels carry {per_pixel.ravel()[order[:count]].sum() / total:.0%}")
+        share = per_pixel.ravel()[order[:count]].sum() / total
+        print(f"  the worst {count} of {per_pixel.size} pixels carry {share:.0%}")
     last = frames[-1]
     for index in order[:8]:
         y, x = divmod(int(index), per_pixel.shape[1])

@@ -8,6 +8,9 @@ cd "$root"
 jobs=${AFFINITY_JOBS:-2}
 "$root/scripts/setup.sh"
 
+echo "== Python lint (ruff, pyproject.toml)"
+.venv/bin/ruff check .
+
 echo "== C++ tests (Release)"
 ctest --test-dir build --output-on-failure -j "$jobs"
 

@@ -15,7 +15,8 @@ from __future__ import annotations
 import functools
 import os
 import sys
-from typing import Any, Callable, Protocol
+from collections.abc import Callable
+from typing import Any, Protocol
 
 import numpy as np
 

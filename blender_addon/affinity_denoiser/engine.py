@@ -13,7 +13,8 @@ The pipeline switches the scene to this engine for the duration of a denoise-ren
 from __future__ import annotations
 
 import time
-from typing import Any, Callable, TypeVar
+from collections.abc import Callable
+from typing import Any, TypeVar
 
 import numpy as np
 

@@ -12,7 +12,8 @@ every material before and after.
 from __future__ import annotations
 
 import contextlib
-from typing import Any, Iterator, Union
+from collections.abc import Iterator
+from typing import Any
 
 from . import passes
 
@@ -21,7 +22,7 @@ NODE_PREFIX = "affinity_tmp_"
 MAX_SHADER_DEPTH = 8
 
 # A value is a constant float or an output socket carrying a float.
-Value = Union[float, Any]
+Value = float | Any
 
 #: (roughness, metallic, transmission) of BSDF nodes that have no such inputs.
 _FIXED_SURFACES = {

@@ -20,7 +20,8 @@ import errno
 import itertools
 import os
 import tempfile
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 import numpy as np
 

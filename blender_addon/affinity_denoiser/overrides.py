@@ -39,7 +39,7 @@ class Overrides:
         if errors:
             raise RuntimeError("could not restore " + "; ".join(errors))
 
-    def __enter__(self) -> "Overrides":
+    def __enter__(self) -> Overrides:
         return self
 
     def __exit__(self, *exc_info: object) -> None:

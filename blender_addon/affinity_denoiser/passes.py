@@ -7,7 +7,8 @@ pass is known by a role and resolved against the names a render result actually 
 from __future__ import annotations
 
 import contextlib
-from typing import Any, Iterator
+from collections.abc import Iterator
+from typing import Any
 
 import numpy as np
 

@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import os
 import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
-from typing import Any, Callable, Iterator
+from typing import Any
 
 import numpy as np
 
@@ -73,7 +74,7 @@ class Settings:
     keep_sample_frames: bool = False
 
     @classmethod
-    def from_properties(cls, props: Any) -> "Settings":
+    def from_properties(cls, props: Any) -> Settings:
         return cls(
             samples_per_frame=props.samples_per_frame,
             model_path=props.model_path,
@@ -195,7 +196,7 @@ class DenoiseRender:
 
     def _configure(self, overrides: Overrides) -> bool:
         """Sets the scene up for one-sample sub-renders; returns the user's use_compositing."""
-        scene, render, cycles = self.scene, self.scene.render, self.scene.cycles
+        render, cycles = self.scene.render, self.scene.cycles
         use_compositing = bool(render.use_compositing)
         passes.enable_passes(overrides, self.view_layer)
         overrides.set(render, "engine", engine.IDNAME)

@@ -14,7 +14,8 @@ import numpy as np
 
 from . import _core
 
-__all__ = ["smape", "relmse", "psnr", "temporal_error", "tonemapped_temporal_error", "warping_error", "flip", "ms_per_megapixel"]
+__all__ = ["smape", "relmse", "psnr", "temporal_error", "tonemapped_temporal_error", "warping_error", "flip",
+           "ms_per_megapixel"]
 
 
 def smape(image: Any, reference: Any) -> float:

@@ -28,8 +28,8 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path[:0] = [HERE, os.path.join(ROOT, "blender_addon"), os.path.join(ROOT, "build", "python")]
 
 import bpy  # noqa: E402
-
 import scenes  # noqa: E402
+
 import affinity_denoiser  # noqa: E402
 from affinity_denoiser import materials, motion, passes, pipeline  # noqa: E402
 from affinity_denoiser.overrides import Overrides  # noqa: E402

@@ -24,8 +24,8 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path[:0] = [HERE, os.path.join(ROOT, "blender_addon"), os.path.join(ROOT, "build", "python")]
 
 import bpy  # noqa: E402
-
 import scenes  # noqa: E402
+
 import affinity_denoiser  # noqa: E402
 from affinity_denoiser import backend, engine, passes, pipeline  # noqa: E402
 

@@ -9,7 +9,8 @@ from __future__ import annotations
 
 import os
 import sys
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 import pytest
@@ -111,8 +112,8 @@ def material_snapshot() -> dict[str, Any]:
             for n in tree.nodes
         ]
         links = sorted(
-            (l.from_node.name, l.from_socket.identifier, l.to_node.name, l.to_socket.identifier)
-            for l in tree.links
+            (link.from_node.name, link.from_socket.identifier, link.to_node.name, link.to_socket.identifier)
+            for link in tree.links
         )
         active = tree.nodes.active.name if tree.nodes.active else None
         snapshot[material.name] = (nodes, links, active, material.is_evaluated)

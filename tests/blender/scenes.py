@@ -112,7 +112,7 @@ def use_float_exr_output(scene: bpy.types.Scene) -> None:
     settings.color_mode = "RGBA"
 
 
-def read_image(path: str) -> "object":
+def read_image(path: str) -> object:
     """An image file's pixels as float32 (H, W, 4), top row first, no colour conversion."""
     import numpy as np
 

@@ -10,7 +10,6 @@ import sys
 
 import numpy as np
 import pytest
-
 from conftest import CORE_AVAILABLE, ROOT
 
 sys.path.append(os.path.join(ROOT, "training", "cycles"))

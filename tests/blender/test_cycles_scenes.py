@@ -13,7 +13,6 @@ from typing import Any
 import bpy
 import numpy as np
 import pytest
-
 from conftest import ROOT
 
 sys.path.append(os.path.join(ROOT, "training", "cycles"))
@@ -93,8 +92,8 @@ def _tree(tree: bpy.types.NodeTree | None) -> Any:
         if node.bl_idname == "ShaderNodeValToRGB":
             ramp = tuple((e.position, tuple(e.color)) for e in node.color_ramp.elements)
         nodes.append((node.name, node.bl_idname, inputs, extra, ramp))
-    links = sorted((l.from_node.name, l.from_socket.identifier, l.to_node.name,
-                    l.to_socket.identifier) for l in tree.links)
+    links = sorted((link.from_node.name, link.from_socket.identifier, link.to_node.name,
+                    link.to_socket.identifier) for link in tree.links)
     return nodes, links
 
 

@@ -15,9 +15,9 @@ from typing import Any
 
 import bpy
 import pytest
+from conftest import ROOT
 
 from affinity_denoiser import backend
-from conftest import ROOT
 
 PACKAGE = os.path.join(ROOT, "blender_addon", "affinity_denoiser")
 TESTS = os.path.dirname(os.path.abspath(__file__))

@@ -12,8 +12,8 @@ from typing import Any
 import bpy
 import numpy as np
 import pytest
-
 from conftest import capture, material_snapshot
+
 from affinity_denoiser import materials, motion, passes, pipeline
 
 WIDTH, HEIGHT, FRAMES, SPP = 64, 48, 3, 4

@@ -10,9 +10,9 @@ from typing import Any
 
 import bpy
 import pytest
-
 import scenes
 from conftest import CORE_AVAILABLE, ROOT
+
 from affinity_denoiser import backend, operators
 
 
@@ -104,10 +104,10 @@ class _Layout:
         self.use_property_split = self.use_property_decorate = False
         self.active = self.enabled = True
 
-    def column(self, **_: Any) -> "_Layout":
+    def column(self, **_: Any) -> _Layout:
         return self
 
-    def row(self, **_: Any) -> "_Layout":
+    def row(self, **_: Any) -> _Layout:
         return self
 
     def prop(self, data: Any, name: str, **_: Any) -> None:

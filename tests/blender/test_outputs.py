@@ -9,9 +9,9 @@ from typing import Any
 import bpy
 import numpy as np
 import pytest
-
 import scenes
 from conftest import CORE_IO_AVAILABLE, material_snapshot
+
 from affinity_denoiser import backend, engine, output, pipeline
 
 

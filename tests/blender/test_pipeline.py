@@ -9,9 +9,9 @@ from typing import Any
 import bpy
 import numpy as np
 import pytest
-
 import scenes
 from conftest import CORE_IO_AVAILABLE, capture, material_snapshot
+
 from affinity_denoiser import compositor, features, pipeline
 
 REFERENCE_SPP = 256

@@ -90,7 +90,8 @@ def test_a_second_reference_measures_the_references_own_noise(bench: tuple[pathl
     assert "rendered the second reference of glossy" in log
     rows = read_rows(out / "reference_noise.csv")
     assert [r["sequence"] for r in rows] == ["glossy", "disocclusion"]
-    noisy = {(r["sequence"], r["spp"]): float(r["smape"]) for r in read_rows(out / "results.csv") if r["method"] == "noisy"}
+    noisy = {(r["sequence"], r["spp"]): float(r["smape"]) for r in read_rows(out / "results.csv")
+             if r["method"] == "noisy"}
     for row in rows:
         assert all(math.isfinite(float(row[m])) for m in report.METRICS), row
         # Other random numbers, so not the same image; 64 spp each, so far closer to each other

@@ -67,7 +67,8 @@ def test_temporal_error_is_zero_when_the_output_follows_the_reference() -> None:
     reference, previous = rng.random((6, 5, 3), np.float32), rng.random((6, 5, 3), np.float32)
     motion = rng.uniform(-1, 1, (6, 5, 2)).astype(np.float32)
     valid = np.ones((6, 5), np.float32)
-    assert metrics.temporal_error(reference, previous, reference, previous, motion, valid) == pytest.approx(0.0, abs=1e-6)
+    same = metrics.temporal_error(reference, previous, reference, previous, motion, valid)
+    assert same == pytest.approx(0.0, abs=1e-6)
     with pytest.raises(ValueError, match="motion"):
         metrics.temporal_error(reference, previous, reference, previous, motion[:, :, :1], valid)
 
@@ -81,7 +82,8 @@ def test_tonemapped_temporal_error_by_hand() -> None:
     shadow = {"output": image(1), "previous_output": image(0), "reference": image(0),
               "previous_reference": image(0), **still}
     assert metrics.temporal_error(**lamp) == pytest.approx(20.0)
-    assert metrics.tonemapped_temporal_error(**lamp) == pytest.approx(120 / 121 - 100 / 101, abs=1e-7)  # float32 tone map
+    # float32 tone map
+    assert metrics.tonemapped_temporal_error(**lamp) == pytest.approx(120 / 121 - 100 / 101, abs=1e-7)
     assert metrics.tonemapped_temporal_error(**shadow) == pytest.approx(0.5, rel=1e-6)
     # Negative radiance is clamped to 0 first, as for PSNR.
     shadow["output"] = image(-3)
@@ -106,7 +108,8 @@ def test_warping_error_of_a_still_sequence_is_its_squared_tonemapped_change() ->
     # No motion: the warp is the identity, so the error is the plain per-pixel change, computed
     # here with numpy alone.
     rng = np.random.default_rng(2)
-    before, after = rng.uniform(-0.5, 4, (5, 7, 3)).astype(np.float32), rng.uniform(-0.5, 4, (5, 7, 3)).astype(np.float32)
+    before = rng.uniform(-0.5, 4, (5, 7, 3)).astype(np.float32)
+    after = rng.uniform(-0.5, 4, (5, 7, 3)).astype(np.float32)
     still, valid = np.zeros((5, 7, 2), np.float32), np.ones((5, 7), np.float32)
     expected = np.mean(np.sum((metrics.tonemap(after) - metrics.tonemap(before)).astype(np.float64) ** 2, axis=2))
     assert metrics.warping_error(after, before, still, valid) == pytest.approx(expected, rel=1e-5)

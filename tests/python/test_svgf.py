@@ -8,9 +8,9 @@ import subprocess
 
 import numpy as np
 import pytest
+from gil_check import python_ticks_during
 
 import affinity
-from gil_check import python_ticks_during
 
 BUILD = pathlib.Path(os.environ.get("AFFINITY_BUILD_DIR", pathlib.Path(__file__).parents[2] / "build"))
 CLI = BUILD / "core" / "affinity"

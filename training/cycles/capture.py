@@ -24,12 +24,13 @@ import json
 import os
 import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 import numpy as np
 
-from affinity_denoiser import backend, engine, passes, pipeline
+from affinity_denoiser import engine, passes, pipeline
 from affinity_denoiser.overrides import Overrides
 
 #: Added to the scene's seed for the k-th target render (k = 1, 2): far from any seed a

@@ -28,11 +28,11 @@ for path in (HERE, os.path.join(ROOT, "blender_addon"), os.path.join(ROOT, "buil
     if path not in sys.path:
         sys.path.append(path)
 
-import bpy  # noqa: E402
 
-import affinity_denoiser  # noqa: E402
 import capture  # noqa: E402
 import scene_generator  # noqa: E402
+
+import affinity_denoiser  # noqa: E402
 
 
 def seed_list(text: str) -> list[int]:

@@ -17,8 +17,8 @@ from __future__ import annotations
 import colorsys
 import math
 import random
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Iterable, Sequence
 
 import bmesh
 import bpy
@@ -1374,7 +1374,7 @@ def _plant(b: _Build, name: str, location: Vector) -> None:
         _displace(crown, b.rng, b.uniform(0.1, 0.2), b.uniform(0.05, 0.15))
     else:
         bm = bmesh.new()
-        for k in range(b.rng.randint(5, 9)):
+        for _ in range(b.rng.randint(5, 9)):
             a = b.uniform(0, 2 * math.pi)
             lean = b.uniform(0.1, 0.4)
             tip = (lean * math.cos(a), lean * math.sin(a), b.uniform(0.5, 0.9))
@@ -1939,8 +1939,8 @@ def _exterior_movers(b: _Build, made: dict, night: bool) -> None:
             sun = b.scene.objects["Sun"]
             start = Euler(sun.rotation_euler)
             step = math.radians(b.uniform(0.1, 0.5))
-            _animate(b, sun, lambda i: {"rotation_euler": Euler((start.x + step * i, start.y,
-                                                                  start.z))}, every_frame=False,
+            _animate(b, sun, lambda i, start=start, step=step: {
+                "rotation_euler": Euler((start.x + step * i, start.y, start.z))}, every_frame=False,
                      interpolation="LINEAR")
 
 
