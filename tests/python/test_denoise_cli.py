@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 import pytest
+from tiled_frame import tiled_frame
 
 import affinity
 from affinity import metrics
@@ -44,11 +45,7 @@ def checksums(folder: pathlib.Path) -> dict[str, str]:
 def large_sequence(source: pathlib.Path, folder: pathlib.Path, frames: int, tiles: int = 12) -> pathlib.Path:
     """`frames` copies of `source`'s first frame tiled `tiles` x `tiles` times (432x288 from
     36x24): a run long enough to be interrupted while it works."""
-    frame = affinity.read_frame(affinity.list_frame_files(source)[0])
-    frame["samples"] = np.ascontiguousarray(np.tile(frame["samples"], (tiles, tiles, 1, 1)))
-    frame["motion"] = np.ascontiguousarray(np.tile(frame["motion"], (tiles, tiles, 1)))
-    frame["valid"] = np.ascontiguousarray(np.tile(frame["valid"], (tiles, tiles)))
-    frame["reference"] = None
+    frame = tiled_frame(affinity.read_frame(affinity.list_frame_files(source)[0]), tiles)
     folder.mkdir()
     affinity.write_frame(folder / "frame_0000.exr", frame, compression="none")
     for i in range(1, frames):

@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 from gil_check import python_ticks_during
+from tiled_frame import tiled_frame
 
 import affinity
 
@@ -278,16 +279,10 @@ def test_the_report_gives_the_memory_of_the_denoisers_buffers(frame_files: list[
     assert sizes[2] == sizes[1]
 
 
-def _large_frame(frame: dict, tiles: int = 16) -> dict:
-    """The frame tiled `tiles` x `tiles` times (640x480 from 40x30): a denoise long enough that
-    another thread or a signal arrives while it runs."""
-    return {
-        **frame,
-        "samples": np.ascontiguousarray(np.tile(frame["samples"], (tiles, tiles, 1, 1))),
-        "motion": np.ascontiguousarray(np.tile(frame["motion"], (tiles, tiles, 1))),
-        "valid": np.ascontiguousarray(np.tile(frame["valid"], (tiles, tiles))),
-        "reference": None,
-    }
+def _large_frame(frame: dict) -> dict:
+    """640x480 from the 40x30 frame: a denoise long enough that another thread or a signal
+    arrives while it runs."""
+    return tiled_frame(frame, 16)
 
 
 def test_a_second_call_while_one_runs_is_refused(sequence: list[dict]) -> None:
