@@ -117,11 +117,7 @@ int denoiseCommand(const std::vector<std::string>& args) {
         file << summary.dump(2) << "\n";
         if (!file) throw Error("cannot write " + (out / "denoise_summary.json").string());
     });
-    if (interrupted) {
-        std::fprintf(stderr, "\naffinity denoise: interrupted after %zu of %zu frames; those are kept in %s\n", done,
-                     frames.size(), out.string().c_str());
-        return interruptedExitStatus();
-    }
+    if (interrupted) return reportInterrupted("denoise", (long long)done, (long long)frames.size(), out.string());
     bar.finish(std::to_string(frames.size()) + " frames, " +
                std::to_string(int(totalSeconds * 1e3 / double(frames.size()))) + " ms per frame -> " + out.string());
     return 0;

@@ -4,6 +4,7 @@
 
 #include <atomic>
 #include <csignal>
+#include <cstdio>
 
 #include "affinity/atomic_file.h"
 
@@ -34,6 +35,10 @@ void installInterruptHandlers() {
 
 bool interruptRequested() { return signalsReceived.load() > 0; }
 
-int interruptedExitStatus() { return 128 + firstSignal.load(); }
+int reportInterrupted(const char* command, long long done, long long total, const std::string& folder) {
+    std::fprintf(stderr, "\naffinity %s: interrupted after %lld of %lld frames; those are kept in %s\n", command, done,
+                 total, folder.c_str());
+    return 128 + firstSignal.load();
+}
 
 }  // namespace affinity::cli

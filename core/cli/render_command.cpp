@@ -258,11 +258,7 @@ int renderCommand(const std::vector<std::string>& args) {
                                     {"rays_per_second", totalSeconds > 0 ? double(renderer.raysCast()) / totalSeconds : 0.0},
                                     {"per_frame", perFrame}};
     if (done > 0) writeText(out / "render_summary.json", summary.dump(2) + "\n");
-    if (done < frames) {
-        std::fprintf(stderr, "\naffinity render: interrupted after %d of %d frames; those are kept in %s\n", done,
-                     frames, out.string().c_str());
-        return interruptedExitStatus();
-    }
+    if (done < frames) return reportInterrupted("render", done, frames, out.string());
     std::printf("%s: %d frames of %dx%d at %d spp (reference %d spp) in %.1f s, %.1f Mrays/s -> %s\n",
                 scene.name.c_str(), frames, settings.width, settings.height, settings.spp, settings.referenceSpp,
                 totalSeconds, double(renderer.raysCast()) / totalSeconds / 1e6, out.string().c_str());
