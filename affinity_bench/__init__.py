@@ -1,4 +1,4 @@
-"""The evaluation benchmark, a development tool of this repository (not part of the `affinity`
+"""The evaluation benchmark, a development tool of this repository (not part of the `affinity_core`
 wheel): ``python -m affinity_bench --out DIR [--config full|tiny|cycles] ...`` from the
 repository root, with the built module on the path (``PYTHONPATH=build/python:.``).
 

@@ -19,7 +19,7 @@ from typing import Any
 
 import numpy as np
 
-import affinity
+import affinity_core
 
 from .methods import Method, Runner
 
@@ -62,7 +62,7 @@ class CyclesSequence:
     def __init__(self, folder: pathlib.Path) -> None:
         self.folder = folder
         self.summary: dict[str, Any] = json.loads((folder / "render_summary.json").read_text())
-        self.frames = [affinity.read_frame(path) for path in affinity.list_frame_files(folder)]
+        self.frames = [affinity_core.read_frame(path) for path in affinity_core.list_frame_files(folder)]
         oidn_file = folder / "blender_oidn.npz"
         self.blender_oidn = dict(np.load(oidn_file)) if oidn_file.is_file() else {}
 

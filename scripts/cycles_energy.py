@@ -21,7 +21,7 @@ import sys
 
 import numpy as np
 
-import affinity
+import affinity_core
 from affinity_bench import cycles
 
 LUMINANCE = np.array([0.2126, 0.7152, 0.0722], np.float32)
@@ -31,12 +31,12 @@ def sequence_energy(folder: pathlib.Path, model: str, spp: int) -> dict[str, flo
     """Light sums over the sequence's frames (luminance) for one model at `spp` samples."""
     halves = np.load(folder / "reference_halves.npz")
     blender = np.load(folder / "blender_oidn.npz")
-    denoiser = affinity.Denoiser(model)
+    denoiser = affinity_core.Denoiser(model)
     sums = dict.fromkeys(("reference", "noisy", "output", "blender", "half_a", "half_b",
                           "noisy_top", "output_top"), 0.0)
     half_ratios = []
-    for index, path in enumerate(affinity.list_frame_files(folder)):
-        frame = affinity.read_frame(path)
+    for index, path in enumerate(affinity_core.list_frame_files(folder)):
+        frame = affinity_core.read_frame(path)
         frame["samples"] = np.ascontiguousarray(frame["samples"][:, :, :spp])
         output = denoiser.denoise(frame)
         samples = frame["samples"]

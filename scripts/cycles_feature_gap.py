@@ -25,11 +25,11 @@ from typing import Any
 
 import numpy as np
 
-import affinity
-from affinity import metrics
+import affinity_core
 from affinity_bench.config import FULL, Sequence
 from affinity_bench.data import DEFAULT_DATA_DIR, ensure_sequence, find_affinity_binary, with_spp
 from affinity_bench.methods import BUILT_IN, make_methods
+from affinity_core import metrics
 
 CONVENTIONS = ("renderer", "cycles")
 #: What FeatureConvention::Cycles (core/render/path_tracer.cpp, CyclesFeatures) reproduces.
@@ -140,14 +140,15 @@ def main(argv: list[str]) -> int:
     attribution: dict[str, dict[str, tuple[float, float]]] = {}
     for sequence in sequences:
         cached = ensure_sequence(args.data, sequence, FULL, binary)
-        references = [affinity.read_frame(p)["reference"] for p in affinity.list_frame_files(cached)][:args.frames]
-        cached_first = affinity.read_frame(affinity.list_frame_files(cached)[0])["samples"][:, :, :render_spp]
+        cached_files = affinity_core.list_frame_files(cached)
+        references = [affinity_core.read_frame(p)["reference"] for p in cached_files][:args.frames]
+        cached_first = affinity_core.read_frame(cached_files[0])["samples"][:, :, :render_spp]
         loaded = {}
         for convention in CONVENTIONS:
             folder = args.work / (f"{sequence.name}_seed{sequence.seed}_{FULL.width}x{FULL.height}_"
                                   f"{args.frames}f_{render_spp}spp_{convention}")
             render(binary, sequence, convention, args.frames, render_spp, folder)
-            loaded[convention] = [affinity.read_frame(p) for p in affinity.list_frame_files(folder)]
+            loaded[convention] = [affinity_core.read_frame(p) for p in affinity_core.list_frame_files(folder)]
         # The renderer-convention render must be the benchmark's input (its first samples).
         if not np.array_equal(loaded["renderer"][0]["samples"], cached_first):
             raise SystemExit(f"{sequence.name}: renderer-convention samples differ from the benchmark cache {cached}")

@@ -18,8 +18,8 @@ import sys
 
 import numpy as np
 
-import affinity
-from affinity import metrics
+import affinity_core
+from affinity_core import metrics
 
 SIGMAS = (0.0, 0.3, 0.4, 0.5, 0.6, 0.7, 0.85, 1.0)
 
@@ -60,7 +60,7 @@ def main() -> None:
         sys.exit(f"temporal_error_floor: no benchmark sequences (*_ref1024) in {root}")
     rows = {sigma: [] for sigma in SIGMAS}  # (sequence, smape, temporal) per sigma
     for folder in folders:
-        frames = [affinity.read_frame(path) for path in affinity.list_frame_files(folder)]
+        frames = [affinity_core.read_frame(path) for path in affinity_core.list_frame_files(folder)]
         name = folder.name.split("_seed")[0]
         for sigma in SIGMAS:
             rows[sigma].append((name, *score(frames, sigma)))

@@ -14,8 +14,8 @@ import sys
 
 import numpy as np
 
-import affinity
-from affinity import metrics
+import affinity_core
+from affinity_core import metrics
 
 
 def warp(image: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -34,8 +34,8 @@ def warp(image: np.ndarray, motion: np.ndarray) -> tuple[np.ndarray, np.ndarray]
 
 
 def main(sequence_dir: str, spp: int, model: str | None) -> None:
-    frames = [affinity.read_frame(path) for path in affinity.list_frame_files(sequence_dir)]
-    denoiser = affinity.Denoiser(model)
+    frames = [affinity_core.read_frame(path) for path in affinity_core.list_frame_files(sequence_dir)]
+    denoiser = affinity_core.Denoiser(model)
     outputs = []
     for frame in frames:
         view = dict(frame, samples=np.ascontiguousarray(frame["samples"][:, :, :spp, :]))

@@ -6,9 +6,9 @@ missing core is reported there and in the panel, and does not stop the add-on fr
 
 from __future__ import annotations
 
-from . import engine, operators, properties, ui
+from . import engine, operators, properties, render_engine, ui
 
-_modules = (properties, engine, operators, ui)
+_modules = (properties, engine, render_engine, operators, ui)
 
 
 def register() -> None:

@@ -1,4 +1,4 @@
-"""The one seam between the add-on and the affinity core (the native ``affinity`` module).
+"""The one seam between the add-on and the affinity core (the native ``affinity_core`` module).
 
 Everything the add-on needs from the core goes through ``create_denoiser`` and
 ``write_sample_frame``. The module is imported lazily so that the add-on registers (and its
@@ -6,7 +6,7 @@ panel shows a clear message) even when the core is missing.
 
 The core comes from the wheel bundled with the extension (``wheels`` in blender_manifest.toml),
 which Blender installs into the extensions' site-packages; it is preferred over any other
-``affinity`` on the path (e.g. a development build in ``build/python``), which is used only
+``affinity_core`` on the path (e.g. a development build in ``build/python``), which is used only
 when there is no bundled one.
 """
 
@@ -59,7 +59,7 @@ def bundled_site_packages() -> str | None:
     # Blender's layout for extension wheels (addon_utils, 4.2 to 5.0).
     path = os.path.join(bpy.utils.user_resource("EXTENSIONS"), ".local", "lib",
                         f"python{sys.version_info[0]}.{sys.version_info[1]}", "site-packages")
-    return path if os.path.isfile(os.path.join(path, "affinity", "__init__.py")) else None
+    return path if os.path.isfile(os.path.join(path, "affinity_core", "__init__.py")) else None
 
 
 @functools.cache
@@ -77,9 +77,9 @@ def _cpu_problem() -> str:
 
 
 def _import_core() -> Any:
-    """``affinity``: the bundled wheel's when there is one, else whatever the path has."""
-    if "affinity" in sys.modules:
-        return sys.modules["affinity"]
+    """``affinity_core``: the bundled wheel's when there is one, else whatever the path has."""
+    if "affinity_core" in sys.modules:
+        return sys.modules["affinity_core"]
     if problem := _cpu_problem():
         raise CoreMissing(problem)
     bundled = bundled_site_packages()
@@ -87,26 +87,26 @@ def _import_core() -> Any:
     if bundled is not None:
         sys.path.insert(0, bundled)
         try:
-            import affinity
-            return affinity
+            import affinity_core
+            return affinity_core
         except ImportError as exc:
             bundled_error = f" (the bundled one in {bundled} failed: {exc})"
         finally:
             sys.path.remove(bundled)  # the first occurrence: the one inserted above
     try:
-        import affinity
+        import affinity_core
     except ImportError as exc:
         raise CoreMissing(
-            "the affinity core (Python module 'affinity') is not installed for this Blender: "
+            "the affinity core (Python module 'affinity_core') is not installed for this Blender: "
             f"{exc}{bundled_error}. Install the extension package that bundles its wheel "
             "(scripts/build_extension.sh builds it), or build it (cmake --build build --target "
             "_core) and put build/python on PYTHONPATH."
         ) from exc
-    return affinity
+    return affinity_core
 
 
 def load_core(need_denoiser: bool = True) -> Any:
-    """The ``affinity`` module, or CoreMissing with the reason and what to do.
+    """The ``affinity_core`` module, or CoreMissing with the reason and what to do.
 
     ``need_denoiser=False`` accepts a core that can only read and write frame files.
     """

@@ -101,7 +101,7 @@ def frame_dict(
     frame_index: int,
     seed: int,
 ) -> dict[str, Any]:
-    """A frame in the layout of affinity.read_frame / write_frame (docs/FRAME_FILES.md);
+    """A frame in the layout of affinity_core.read_frame / write_frame (docs/FRAME_FILES.md);
     samples None when they were streamed to the denoiser instead."""
     return {
         "samples": None if samples is None else np.ascontiguousarray(samples, dtype=np.float32),

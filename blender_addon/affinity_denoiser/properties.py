@@ -1,8 +1,9 @@
 """Settings of the Affinity Denoiser, stored on the scene (``scene.affinity_denoiser``).
 
-There is no on / off switch: the panel's buttons (the operators) are what denoise-renders;
-ordinary renders (F12) are plain Cycles. ``last_output_folder`` (read-only) tells a script
-where the last denoise-render of the scene wrote its frames.
+There is no on / off switch: the engine "Cycles + Affinity Denoiser" denoises every final
+render (F12, ``-a``), and the panel's buttons (the operators) denoise-render with either
+engine. ``last_output_folder`` (read-only) tells a script where the last denoise-render of the
+scene wrote its frames.
 """
 
 from __future__ import annotations
@@ -59,6 +60,16 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
         description="Carry history from frame to frame (stable animation); off denoises "
         "each frame alone",
         default=True,
+    )
+    warmup_frames: bpy.props.IntProperty(
+        name="Warm-up Frames",
+        description="With the Cycles + Affinity Denoiser engine, a render that starts after "
+        "the animation's first frame (a render farm's chunk, or F12 on a later frame) first "
+        "renders up to this many frames before it, not saved, so that its history matches an "
+        "uninterrupted render of the whole animation",
+        default=8,
+        min=0,
+        max=64,
     )
     output_folder: bpy.props.StringProperty(
         name="Output Folder",

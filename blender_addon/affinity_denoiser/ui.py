@@ -7,7 +7,7 @@ from typing import Any
 
 import bpy
 
-from . import backend
+from . import backend, engine
 
 
 class AFFINITY_DENOISER_PT_render(bpy.types.Panel):
@@ -19,7 +19,8 @@ class AFFINITY_DENOISER_PT_render(bpy.types.Panel):
 
     @classmethod
     def poll(cls, context: Any) -> bool:
-        return context.scene is not None and context.scene.render.engine == "CYCLES"
+        return context.scene is not None and context.scene.render.engine in (
+            "CYCLES", engine.DENOISING_ENGINE)
 
     def draw(self, context: Any) -> None:
         settings = context.scene.affinity_denoiser
@@ -31,6 +32,7 @@ class AFFINITY_DENOISER_PT_render(bpy.types.Panel):
         column.prop(settings, "model_path")
         column.prop(settings, "precision")
         column.prop(settings, "temporal")
+        column.prop(settings, "warmup_frames")
         column.prop(settings, "output_folder")
         column.prop(settings, "keep_sample_frames")
         problem = backend.core_status()

@@ -1,5 +1,5 @@
-// affinity._core: frames as dicts of numpy arrays. The public, documented API is the pure
-// Python package python_bindings/affinity/__init__.py, which re-exports these.
+// affinity_core._core: frames as dicts of numpy arrays. The public, documented API is the pure
+// Python package python_bindings/affinity_core/__init__.py, which re-exports these.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
@@ -296,7 +296,7 @@ SampleFrame frameFromDict(const py::dict& dict) {
     return frame;
 }
 
-// What Denoiser.last_report holds (see python_bindings/affinity/__init__.py).
+// What Denoiser.last_report holds (see python_bindings/affinity_core/__init__.py).
 py::dict reportDict(const DenoiseReport& report) {
     py::dict info;
     info["invalid_radiance"] = report.invalidRadiance;
@@ -322,7 +322,7 @@ ExrCompression compressionFromName(const std::string& name) {
 
 PYBIND11_MODULE(_core, m) {
     using namespace affinity;
-    m.doc() = "Native part of the affinity package; use the `affinity` package instead.";
+    m.doc() = "Native part of the affinity_core package; use the `affinity_core` package instead.";
 
     py::register_exception<Error>(m, "Error", PyExc_RuntimeError);
 
@@ -345,7 +345,7 @@ PYBIND11_MODULE(_core, m) {
             return frameToDict(std::move(frame));
         },
         py::arg("path"),
-        "Reads a frame file into a dict of numpy arrays (see affinity.read_frame).");
+        "Reads a frame file into a dict of numpy arrays (see affinity_core.read_frame).");
 
     m.def(
         "write_frame",
@@ -357,7 +357,7 @@ PYBIND11_MODULE(_core, m) {
             writeFrame(path.string(), native, mode);
         },
         py::arg("path"), py::arg("frame"), py::arg("compression") = "piz",
-        "Writes a frame dict atomically (see affinity.write_frame).");
+        "Writes a frame dict atomically (see affinity_core.write_frame).");
 
     m.def("bfloat16_supported", &bfloat16Supported,
           "Whether this CPU can run models with precision='bf16' (AVX512-BF16).");
@@ -373,7 +373,7 @@ PYBIND11_MODULE(_core, m) {
             "built_in", [](const std::string& precision) { return Model::builtIn(precisionFromName(precision)); },
             py::arg("precision") = "auto",
             "The default model compiled into the library; precision 'auto' (bf16 where "
-            "affinity.bfloat16_supported(), else fp32), 'fp32' or 'bf16'.")
+            "affinity_core.bfloat16_supported(), else fp32), 'fp32' or 'bf16'.")
         .def_static(
             "from_file",
             [](const std::filesystem::path& path, const std::string& precision) {
@@ -391,9 +391,9 @@ PYBIND11_MODULE(_core, m) {
         .def_property_readonly("parameter_count", &Model::parameterCount)
         .def("flops_per_pixel", &Model::flopsPerPixel, py::arg("spp"));
 
-    py::class_<Denoiser>(m, "Denoiser", "Stateful sequence denoiser (see affinity.Denoiser).")
+    py::class_<Denoiser>(m, "Denoiser", "Stateful sequence denoiser (see affinity_core.Denoiser).")
         .def(py::init([](Model model, bool useHistory, bool temporalKernel, bool allKernels) {
-                 // The benchmark's ablations (affinity.Denoiser(ablation=...)): internal to the library.
+                 // The benchmark's ablations (affinity_core.Denoiser(ablation=...)): internal to the library.
                  Denoiser denoiser = ablatedDenoiser(std::move(model), Ablation{useHistory, temporalKernel, allKernels});
                  denoiser.setInterruptCheck(pythonSignalRaised);
                  return denoiser;

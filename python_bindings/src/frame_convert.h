@@ -1,6 +1,6 @@
 #pragma once
 // Frames between Python dicts of numpy arrays and C++, shared by the binding files; defined in
-// bindings.cpp. The dict layout is documented in python_bindings/affinity/__init__.py.
+// bindings.cpp. The dict layout is documented in python_bindings/affinity_core/__init__.py.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 

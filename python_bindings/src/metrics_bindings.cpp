@@ -1,5 +1,5 @@
-// affinity._core metrics: the C++ error metrics of affinity/metrics.h on numpy images. The
-// documented API is python_bindings/affinity/metrics.py.
+// affinity_core._core metrics: the C++ error metrics of affinity/metrics.h on numpy images. The
+// documented API is python_bindings/affinity_core/metrics.py.
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
@@ -89,16 +89,16 @@ double warpingErrorOf(const Image& image, const Image& previousImage, const Imag
 
 void bindMetrics(py::module_& m) {
     m.def("smape", &pairMetric<smape>, py::arg("image"), py::arg("reference"),
-          "mean |a - b| / (|a| + |b| + 0.01) over every value (see affinity.metrics.smape).");
+          "mean |a - b| / (|a| + |b| + 0.01) over every value (see affinity_core.metrics.smape).");
     m.def("relmse", &pairMetric<relativeMse>, py::arg("image"), py::arg("reference"),
-          "0.5 * mean (a - b)^2 / (b^2 + 0.01) (see affinity.metrics.relmse).");
+          "0.5 * mean (a - b)^2 / (b^2 + 0.01) (see affinity_core.metrics.relmse).");
     m.def("psnr", &pairMetric<tonemappedPsnr>, py::arg("image"), py::arg("reference"),
-          "PSNR in dB after x / (1 + x) tone mapping (see affinity.metrics.psnr).");
+          "PSNR in dB after x / (1 + x) tone mapping (see affinity_core.metrics.psnr).");
     m.def("temporal_error", &temporalErrorOf, py::arg("output"), py::arg("previous_output"),
           py::arg("reference"), py::arg("previous_reference"), py::arg("motion"), py::arg("valid"),
-          "Flicker relative to the reference's own change (see affinity.metrics.temporal_error).");
+          "Flicker relative to the reference's own change (see affinity_core.metrics.temporal_error).");
     m.def("warping_error", &warpingErrorOf, py::arg("image"), py::arg("previous_image"), py::arg("motion"),
-          py::arg("valid"), "Warping error of Lai et al. 2018 (see affinity.metrics.warping_error).");
+          py::arg("valid"), "Warping error of Lai et al. 2018 (see affinity_core.metrics.warping_error).");
 }
 
 }  // namespace affinity

@@ -1,4 +1,4 @@
-// affinity._core.Svgf: the SVGF baseline of affinity/svgf.h on frame dicts.
+// affinity_core._core.Svgf: the SVGF baseline of affinity/svgf.h on frame dicts.
 #include <pybind11/pybind11.h>
 
 #include <charconv>
@@ -32,7 +32,7 @@ void bindSvgf(py::module_& m) {
                      "reprojected colour and luminance moments, variance-guided a-trous wavelet filter.\n"
                      "Stateful: feed frames in sequence order; reset() at a camera cut. History is dropped\n"
                      "when the frame size changes. Defaults are the paper's; see core/include/affinity/svgf.h.\n"
-                     "Raises affinity.Error for settings out of range.")
+                     "Raises affinity_core.Error for settings out of range.")
         .def(py::init([](int atrousIterations, int feedbackIteration, double sigmaDepth, double sigmaNormal,
                          double sigmaLuminance, double alphaColor, double alphaMoments, int historyCap,
                          int spatialVarianceFrames, double reprojectDepthTolerance, double reprojectNormalCosine,

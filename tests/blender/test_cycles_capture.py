@@ -34,10 +34,10 @@ def captured(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, dict]:
 
 
 def test_a_captured_sequence_has_every_file_and_frame(captured: tuple[str, dict]) -> None:
-    import affinity
+    import affinity_core
 
     folder, summary = captured
-    files = affinity.list_frame_files(folder)
+    files = affinity_core.list_frame_files(folder)
     assert [os.path.basename(f) for f in files] == [f"frame_{i:04d}.exr" for i in range(FRAMES)]
     assert sorted(os.listdir(folder)) == sorted(
         [os.path.basename(f) for f in files] + ["blender_oidn.npz", "reference_halves.npz",
@@ -46,7 +46,7 @@ def test_a_captured_sequence_has_every_file_and_frame(captured: tuple[str, dict]
         assert json.load(handle) == json.loads(json.dumps(summary))
     assert summary["reference_spp"] == 128 and summary["frames"] == FRAMES
     for index, path in enumerate(files):
-        frame = affinity.read_frame(path)
+        frame = affinity_core.read_frame(path)
         assert frame["samples"].shape == (HEIGHT, WIDTH, 4, 18)
         assert frame["info"]["reference_spp"] == 128 and frame["info"]["frame_index"] == index
         assert np.isfinite(frame["reference"]).all() and frame["reference"].mean() > 0
@@ -57,13 +57,13 @@ def test_a_captured_sequence_has_every_file_and_frame(captured: tuple[str, dict]
 
 
 def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[str, dict]) -> None:
-    import affinity
-    from affinity import metrics
+    import affinity_core
+    from affinity_core import metrics
 
     folder, summary = captured
     halves = np.load(os.path.join(folder, "reference_halves.npz"))
-    for index, path in enumerate(affinity.list_frame_files(folder)):
-        frame = affinity.read_frame(path)
+    for index, path in enumerate(affinity_core.list_frame_files(folder)):
+        frame = affinity_core.read_frame(path)
         a, b = halves[f"a_frame{index}"], halves[f"b_frame{index}"]
         np.testing.assert_allclose(frame["reference"], (a + b) / 2, rtol=1e-6, atol=1e-7)
         # Other seeds than the input's and each other's: the halves differ by noise only, and
@@ -76,15 +76,15 @@ def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[st
 
 def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blender(
         captured: tuple[str, dict]) -> None:
-    import affinity
-    from affinity import metrics
+    import affinity_core
+    from affinity_core import metrics
 
     folder, _ = captured
     oidn = np.load(os.path.join(folder, "blender_oidn.npz"))
-    denoiser = affinity.Denoiser()
+    denoiser = affinity_core.Denoiser()
     ours, noisy, blender = [], [], []
-    for index, path in enumerate(affinity.list_frame_files(folder)):
-        frame = affinity.read_frame(path)
+    for index, path in enumerate(affinity_core.list_frame_files(folder)):
+        frame = affinity_core.read_frame(path)
         reference = frame["reference"]
         output = denoiser.denoise(frame)
         ours.append(metrics.smape(output, reference))

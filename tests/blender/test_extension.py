@@ -100,7 +100,7 @@ def test_manifest_lists_exactly_the_built_wheel() -> None:
     # Blender installs every wheel listed; the builder packs every file in the folder.
     assert os.listdir(os.path.join(PACKAGE, "wheels")) == [name]
     # For Blender's CPython 3.11 on Linux x86-64, versioned like the CMake project.
-    assert re.fullmatch(rf"affinity-{re.escape(_cmake_project_version())}-cp311-cp311-"
+    assert re.fullmatch(rf"affinity_core-{re.escape(_cmake_project_version())}-cp311-cp311-"
                         r"manylinux_2_\d+_x86_64\.whl", name), name
     assert manifest["platforms"] == ["linux-x64"]
 
@@ -112,16 +112,16 @@ def test_wheel_holds_the_package_and_the_libraries_it_needs() -> None:
     source = os.path.join(ROOT, "python_bindings")
     expected = {
         os.path.relpath(os.path.join(directory, name), source).replace(os.sep, "/")
-        for directory, dirs, files in os.walk(os.path.join(source, "affinity"))
+        for directory, dirs, files in os.walk(os.path.join(source, "affinity_core"))
         for name in files if name.endswith(".py")
     }
-    assert {n for n in names if n.startswith("affinity/") and n.endswith(".py")} == expected
+    assert {n for n in names if n.startswith("affinity_core/") and n.endswith(".py")} == expected
     # The benchmark is a development tool of the repository (affinity_bench/), never shipped.
-    assert not [n for n in names if n.startswith(("affinity/bench/", "affinity_bench/"))], names
-    assert [n for n in names if n.startswith("affinity/_core")] == [
-        "affinity/_core.cpython-311-x86_64-linux-gnu.so"]
+    assert not [n for n in names if n.startswith(("affinity_core/bench/", "affinity_bench/"))], names
+    assert [n for n in names if n.startswith("affinity_core/_core")] == [
+        "affinity_core/_core.cpython-311-x86_64-linux-gnu.so"]
     # auditwheel copied in what a Blender machine may not have (OpenEXR, Imath, libgomp).
-    vendored = [n.removeprefix("affinity.libs/") for n in names if n.startswith("affinity.libs/")]
+    vendored = [n.removeprefix("affinity_core.libs/") for n in names if n.startswith("affinity_core.libs/")]
     for library in ("libOpenEXR-", "libImath-", "libgomp-"):
         assert any(v.startswith(library) for v in vendored), (library, vendored)
 
@@ -130,11 +130,11 @@ def test_wheel_holds_the_package_and_the_libraries_it_needs() -> None:
 _WHEEL_ALONE = """
 import json, os, sys
 import numpy as np
-import affinity
+import affinity_core
 
 rng = np.random.default_rng(1)
 h, w, spp = 12, 16, 2
-samples = rng.random((h, w, spp, affinity.FEATURE_COUNT), dtype=np.float32)
+samples = rng.random((h, w, spp, affinity_core.FEATURE_COUNT), dtype=np.float32)
 frame = {
     "samples": samples,
     "motion": np.zeros((h, w, 2), np.float32),
@@ -145,16 +145,16 @@ frame = {
              "camera_to_clip": np.eye(4, dtype=np.float32)},
 }
 path = os.path.join(sys.argv[1], "frame_0000.exr")
-affinity.write_frame(path, frame)
-back = affinity.read_frame(path)
-denoiser = affinity.Denoiser()
+affinity_core.write_frame(path, frame)
+back = affinity_core.read_frame(path)
+denoiser = affinity_core.Denoiser()
 outputs = [denoiser.denoise(back), denoiser.denoise(back)]
 with open("/proc/self/maps") as handle:
     exr = sorted({line.split()[-1] for line in handle if "libOpenEXR" in line})
 print(json.dumps({
-    "affinity": affinity.__file__,
-    "version": affinity.__version__,
-    "core": affinity._core.__file__,
+    "affinity": affinity_core.__file__,
+    "version": affinity_core.__version__,
+    "core": affinity_core._core.__file__,
     "numpy": np.__version__,
     "same_samples": bool(np.array_equal(back["samples"], samples)),
     "shapes": [list(o.shape) for o in outputs],
@@ -179,16 +179,16 @@ def test_the_wheel_alone_reads_writes_and_denoises(tmp_path: Any) -> None:
                             timeout=300)
     assert result.returncode == 0, result.stdout + result.stderr
     report = json.loads(result.stdout.strip().splitlines()[-1])
-    assert report["affinity"] == str(site / "affinity" / "__init__.py")
+    assert report["affinity"] == str(site / "affinity_core" / "__init__.py")
     assert report["version"] == _cmake_project_version()  # from the wheel's metadata
-    assert report["core"].startswith(str(site / "affinity" / "_core.cpython-311-"))
+    assert report["core"].startswith(str(site / "affinity_core" / "_core.cpython-311-"))
     assert report["numpy"].startswith("1.26.")  # bpy's numpy; the main venv has numpy 2
     assert report["same_samples"]
     assert report["shapes"] == [[12, 16, 3], [12, 16, 3]]
     assert report["dtypes"] == ["float32", "float32"]
     assert report["finite"] and report["used_history"]
     # The OpenEXR inside the wheel, not the system's.
-    assert report["openexr"] and all(p.startswith(str(site / "affinity.libs")) for p in
+    assert report["openexr"] and all(p.startswith(str(site / "affinity_core.libs")) for p in
                                      report["openexr"]), report["openexr"]
 
 
@@ -211,7 +211,7 @@ scene.frame_set(1)
 assert bpy.ops.affinity_denoiser.render_frame() == {"FINISHED"}
 image = scenes.read_image(os.path.join(out, "affinity_denoised", "denoised_0001.exr"))
 print("RESULT " + json.dumps({
-    "affinity": sys.modules["affinity"].__file__,
+    "affinity": sys.modules["affinity_core"].__file__,
     "addons": sorted(m for m in sys.modules if m.endswith(".affinity_denoiser")),
     "shape": list(image.shape),
     "finite": bool(np.isfinite(image).all()),
@@ -232,7 +232,7 @@ def test_installed_extension_denoises_with_its_bundled_core(tmp_path: Any) -> No
     assert result.returncode == 0 and lines, result.stdout[-3000:] + result.stderr[-3000:]
     report = json.loads(lines[-1].removeprefix("RESULT "))
     site = tmp_path / "blender" / "extensions" / ".local" / "lib" / "python3.11" / "site-packages"
-    assert report["affinity"] == str(site / "affinity" / "__init__.py")
+    assert report["affinity"] == str(site / "affinity_core" / "__init__.py")
     assert report["addons"] == ["bl_ext.user_default.affinity_denoiser"]
     assert report["shape"] == [24, 32, 4] and report["finite"]
 
@@ -245,7 +245,7 @@ def test_cpu_check_names_the_missing_x86_64_v3_features() -> None:
 
 
 def test_a_cpu_without_x86_64_v3_is_a_clear_error(monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.delitem(sys.modules, "affinity", raising=False)
+    monkeypatch.delitem(sys.modules, "affinity_core", raising=False)
     monkeypatch.setattr(backend, "_cpu_problem", lambda: "needs an x86-64-v3 CPU; lacks avx2")
     with pytest.raises(backend.CoreMissing, match="x86-64-v3"):
         backend.load_core()

@@ -221,12 +221,12 @@ def test_denoised_is_closer_to_the_reference_than_the_noisy_mean(run: dict[str, 
 def test_sample_frames_round_trip_through_the_core(run: dict[str, Any], tmp_path: Any) -> None:
     if not CORE_IO_AVAILABLE:
         pytest.skip("the affinity core is not importable")
-    import affinity
+    import affinity_core
 
     frame = run["job"].results[1].frame_data
     path = tmp_path / "frame_0002.exr"
-    affinity.write_frame(path, frame)
-    back = affinity.read_frame(path)
+    affinity_core.write_frame(path, frame)
+    back = affinity_core.read_frame(path)
     np.testing.assert_array_equal(back["samples"], frame["samples"])
     np.testing.assert_array_equal(back["motion"], frame["motion"])
     assert back["info"]["frame_index"] == 2
@@ -240,13 +240,13 @@ def test_streamed_samples_give_what_the_core_gives_on_the_kept_frames(run: dict[
     from conftest import CORE_AVAILABLE
     if not CORE_AVAILABLE:
         pytest.skip("the affinity core is not importable")
-    import affinity
+    import affinity_core
 
     scene = bpy.context.scene
     scene.render.filepath = str(tmp_path / "render" / "frame_")
     job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings())
     job.run()
-    by_hand = affinity.Denoiser()
+    by_hand = affinity_core.Denoiser()
     for kept, streamed in zip(run["job"].results, job.results, strict=True):
         assert streamed.frame_data is None
         samples = kept.frame_data["samples"]
@@ -266,10 +266,10 @@ def test_precision_auto_uses_bfloat16_only_where_the_cpu_has_it(run: dict[str, A
     from conftest import CORE_AVAILABLE
     if not CORE_AVAILABLE:
         pytest.skip("the affinity core is not importable")
-    import affinity
+    import affinity_core
     from affinity_denoiser import backend
 
-    expected = "bf16" if affinity.bfloat16_supported() else "fp32"
+    expected = "bf16" if affinity_core.bfloat16_supported() else "fp32"
     assert backend.create_denoiser("").model.precision == expected
     assert backend.create_denoiser("", "auto").model.precision == expected
     assert backend.create_denoiser("", "fp32").model.precision == "fp32"

@@ -13,7 +13,7 @@ import sys
 import numpy as np
 import pytest
 
-import affinity
+import affinity_core
 from affinity_bench import data, report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
@@ -175,13 +175,13 @@ def test_the_cycles_suite_scores_blender_s_denoiser_beside_ours(tmp_path: pathli
     rows = {(row["method"], int(row["spp"])): row for row in read_rows(out / "results.csv")}
     assert set(rows) == {(m, s) for m in ("noisy", "oidn", "ours-small", "blender-oidn") for s in (2, 4)}
     stored = np.load(CYCLES_DATA / "val" / "cycles_09000" / "blender_oidn.npz")
-    reference = np.stack([f["reference"] for f in map(affinity.read_frame, affinity.list_frame_files(
+    reference = np.stack([f["reference"] for f in map(affinity_core.read_frame, affinity_core.list_frame_files(
         CYCLES_DATA / "val" / "cycles_09000"))])
     for spp in (2, 4):
         # Blender's frames are scored as they were stored, against the mean of the two halves.
         blender = np.stack([stored[f"spp{spp}_frame{i}"] for i in range(3)])
         np.testing.assert_array_equal(np.load(frames / "cycles_09000" / f"blender-oidn_{spp}spp.npy"), blender)
-        expected = np.mean([affinity.metrics.smape(blender[i], reference[i]) for i in range(3)])
+        expected = np.mean([affinity_core.metrics.smape(blender[i], reference[i]) for i in range(3)])
         assert float(rows[("blender-oidn", spp)]["smape"]) == pytest.approx(expected, rel=1e-5)
         # Its time is its own render's, not a lookup's.
         assert float(rows[("blender-oidn", spp)]["render_s_per_frame"]) > 0.01

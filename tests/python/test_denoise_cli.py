@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 from tiled_frame import tiled_frame
 
-import affinity
-from affinity import metrics
+import affinity_core
+from affinity_core import metrics
 
 BUILD = pathlib.Path(os.environ.get("AFFINITY_BUILD_DIR", pathlib.Path(__file__).parents[2] / "build"))
 CLI = BUILD / "core" / "affinity"
@@ -45,11 +45,11 @@ def checksums(folder: pathlib.Path) -> dict[str, str]:
 def large_sequence(source: pathlib.Path, folder: pathlib.Path, frames: int, tiles: int = 12) -> pathlib.Path:
     """`frames` copies of `source`'s first frame tiled `tiles` x `tiles` times (432x288 from
     36x24): a run long enough to be interrupted while it works."""
-    frame = tiled_frame(affinity.read_frame(affinity.list_frame_files(source)[0]), tiles)
+    frame = tiled_frame(affinity_core.read_frame(affinity_core.list_frame_files(source)[0]), tiles)
     folder.mkdir()
-    affinity.write_frame(folder / "frame_0000.exr", frame, compression="none")
+    affinity_core.write_frame(folder / "frame_0000.exr", frame, compression="none")
     for i in range(1, frames):
-        os.link(folder / "frame_0000.exr", folder / affinity.frame_file_name(i))
+        os.link(folder / "frame_0000.exr", folder / affinity_core.frame_file_name(i))
     return folder
 
 
@@ -58,9 +58,9 @@ def test_outputs_follow_the_input_files(frames_dir: pathlib.Path, tmp_path: path
     frame_0000-0005, gave three outputs named by the stored numbers, the first shot's lost."""
     both = tmp_path / "both"
     both.mkdir()
-    inputs = affinity.list_frame_files(frames_dir)
+    inputs = affinity_core.list_frame_files(frames_dir)
     for i, path in enumerate(inputs + inputs):
-        shutil.copy(path, both / affinity.frame_file_name(i))
+        shutil.copy(path, both / affinity_core.frame_file_name(i))
     done = denoise("--in", str(both), "--out", str(tmp_path / "out"))
     assert done.returncode == 0, done.stderr
     assert sorted(p.name for p in (tmp_path / "out").glob("denoised_*.exr")) == [
@@ -128,10 +128,10 @@ def test_the_cli_denoises_as_the_python_denoiser_does(frames_dir: pathlib.Path, 
     summary = json.loads((tmp_path / "out" / "denoise_summary.json").read_text())
     assert summary["frames"] == 3 and summary["model"]
 
-    # The same frames through affinity.Denoiser: the summary's errors are of the same output.
-    denoiser = affinity.Denoiser()
-    for entry, path in zip(summary["per_frame"], affinity.list_frame_files(frames_dir)):
-        frame = affinity.read_frame(path)
+    # The same frames through affinity_core.Denoiser: the summary's errors are of the same output.
+    denoiser = affinity_core.Denoiser()
+    for entry, path in zip(summary["per_frame"], affinity_core.list_frame_files(frames_dir)):
+        frame = affinity_core.read_frame(path)
         output = denoiser.denoise(frame)
         report = denoiser.last_report
         assert entry["used_history"] == report["used_history"] == (entry["frame"] > 0)
@@ -171,7 +171,7 @@ def test_the_cli_takes_a_precision_and_names_a_wrong_one(frames_dir: pathlib.Pat
     assert wrong.returncode != 0 and "unknown precision 'fp16'" in wrong.stderr
     assert not (tmp_path / "o1").exists()
     # The default is auto: bf16 exactly where the CPU has AVX512-BF16; --precision fp32 overrides it.
-    expected = "bf16" if affinity.bfloat16_supported() else "fp32"
+    expected = "bf16" if affinity_core.bfloat16_supported() else "fp32"
     cases = (((), expected), (("--precision", "auto"), expected), (("--precision", "fp32"), "fp32"))
     for arguments, precision in cases:
         out = tmp_path / f"o-{'-'.join(arguments) or 'default'}"
@@ -179,15 +179,15 @@ def test_the_cli_takes_a_precision_and_names_a_wrong_one(frames_dir: pathlib.Pat
         assert run.returncode == 0, run.stderr
         assert json.loads((out / "denoise_summary.json").read_text())["precision"] == precision, arguments
     done = denoise("--in", str(frames_dir), "--out", str(tmp_path / "bf16"), "--precision", "bf16")
-    if not affinity.bfloat16_supported():
+    if not affinity_core.bfloat16_supported():
         assert done.returncode != 0 and "AVX512-BF16" in done.stderr
         return
     assert done.returncode == 0, done.stderr
     summary = json.loads((tmp_path / "bf16" / "denoise_summary.json").read_text())
     assert summary["precision"] == "bf16"
-    denoiser = affinity.Denoiser(precision="bf16")
-    for entry, path in zip(summary["per_frame"], affinity.list_frame_files(frames_dir)):
-        frame = affinity.read_frame(path)
+    denoiser = affinity_core.Denoiser(precision="bf16")
+    for entry, path in zip(summary["per_frame"], affinity_core.list_frame_files(frames_dir)):
+        frame = affinity_core.read_frame(path)
         output = denoiser.denoise(frame)
         assert entry["denoised"]["smape"] == pytest.approx(metrics.smape(output, frame["reference"]), rel=1e-9)
 

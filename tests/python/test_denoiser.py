@@ -1,4 +1,4 @@
-"""affinity.Denoiser from Python: numpy in, numpy out, temporal state, errors, GIL release."""
+"""affinity_core.Denoiser from Python: numpy in, numpy out, temporal state, errors, GIL release."""
 
 from __future__ import annotations
 
@@ -17,7 +17,7 @@ import pytest
 from gil_check import python_ticks_during
 from tiled_frame import tiled_frame
 
-import affinity
+import affinity_core
 
 BUILD = pathlib.Path(os.environ.get("AFFINITY_BUILD_DIR", pathlib.Path(__file__).parents[2] / "build"))
 CLI = BUILD / "core" / "affinity"
@@ -28,11 +28,11 @@ def sequence(tmp_path_factory: pytest.TempPathFactory) -> list[dict]:
     out = tmp_path_factory.mktemp("seq") / "frames"
     subprocess.run([str(CLI), "render", "--scene", "glossy", "--frames", "3", "--spp", "2", "--size", "40x30",
                     "--reference-spp", "32", "--out", str(out)], check=True, capture_output=True, timeout=300)
-    return [affinity.read_frame(f) for f in affinity.list_frame_files(out)]
+    return [affinity_core.read_frame(f) for f in affinity_core.list_frame_files(out)]
 
 
 def test_denoises_a_sequence_to_finite_images(sequence: list[dict]) -> None:
-    denoiser = affinity.Denoiser()
+    denoiser = affinity_core.Denoiser()
     assert denoiser.model.parameter_count > 0
     for i, frame in enumerate(sequence):
         out = denoiser.denoise(frame)
@@ -42,7 +42,7 @@ def test_denoises_a_sequence_to_finite_images(sequence: list[dict]) -> None:
 
 
 def test_reset_makes_the_next_frame_independent_of_the_past(sequence: list[dict]) -> None:
-    a, b = affinity.Denoiser(), affinity.Denoiser()
+    a, b = affinity_core.Denoiser(), affinity_core.Denoiser()
     a.denoise(sequence[0])
     a.reset()
     np.testing.assert_array_equal(a.denoise(sequence[1]), b.denoise(sequence[1]))
@@ -52,7 +52,7 @@ def test_bad_radiance_is_counted(sequence: list[dict]) -> None:
     frame = {**sequence[0], "samples": sequence[0]["samples"].copy()}
     frame["samples"][0, 0, 0, 0] = np.nan
     frame["samples"][1, 1, 1, 4] = -1.0
-    denoiser = affinity.Denoiser()
+    denoiser = affinity_core.Denoiser()
     assert np.isfinite(denoiser.denoise(frame)).all()
     assert denoiser.last_report["invalid_radiance"] == 2
 
@@ -60,33 +60,33 @@ def test_bad_radiance_is_counted(sequence: list[dict]) -> None:
 def test_wrong_shapes_name_the_key(sequence: list[dict]) -> None:
     frame = {**sequence[0], "motion": np.zeros((30, 40, 3), np.float32)}
     with pytest.raises(ValueError, match="motion"):
-        affinity.Denoiser().denoise(frame)
+        affinity_core.Denoiser().denoise(frame)
 
 
 def test_corrupt_model_file_raises_affinity_error(tmp_path: pathlib.Path) -> None:
     path = tmp_path / "broken.affw"
     path.write_bytes(b"AFFWGHTS" + b"\x00" * 40)
-    with pytest.raises(affinity.Error, match="broken.affw"):
-        affinity.Denoiser(path)
+    with pytest.raises(affinity_core.Error, match="broken.affw"):
+        affinity_core.Denoiser(path)
 
 
 def test_the_gil_is_released_while_denoising(sequence: list[dict]) -> None:
     big = {**sequence[0], "samples": np.tile(sequence[0]["samples"], (8, 8, 1, 1)),
            "motion": np.zeros((240, 320, 2), np.float32), "valid": np.zeros((240, 320), np.float32),
            "reference": None}
-    denoiser = affinity.Denoiser()
+    denoiser = affinity_core.Denoiser()
     during = python_ticks_during(lambda: denoiser.denoise(big))
     assert during > 1000  # Python code ran while the native denoiser worked
 
 
 def test_bf16_precision_is_close_to_fp32_or_refused_by_name(sequence: list[dict]) -> None:
-    with pytest.raises(affinity.Error, match="unknown precision 'fp16'"):
-        affinity.Denoiser(precision="fp16")
-    if not affinity.bfloat16_supported():
-        with pytest.raises(affinity.Error, match="AVX512-BF16"):
-            affinity.Denoiser(precision="bf16")
+    with pytest.raises(affinity_core.Error, match="unknown precision 'fp16'"):
+        affinity_core.Denoiser(precision="fp16")
+    if not affinity_core.bfloat16_supported():
+        with pytest.raises(affinity_core.Error, match="AVX512-BF16"):
+            affinity_core.Denoiser(precision="bf16")
         return
-    fp32, bf16 = affinity.Denoiser(precision="fp32"), affinity.Denoiser(precision="bf16")
+    fp32, bf16 = affinity_core.Denoiser(precision="fp32"), affinity_core.Denoiser(precision="bf16")
     assert (fp32.model.precision, bf16.model.precision) == ("fp32", "bf16")
     for frame in sequence:
         a, b = fp32.denoise(frame), bf16.denoise(frame)
@@ -97,31 +97,31 @@ def test_bf16_precision_is_close_to_fp32_or_refused_by_name(sequence: list[dict]
 
 
 def test_the_default_precision_is_bf16_exactly_where_supported_and_fp32_overrides_it(sequence: list[dict]) -> None:
-    expected = "bf16" if affinity.bfloat16_supported() else "fp32"
+    expected = "bf16" if affinity_core.bfloat16_supported() else "fp32"
     model_file = pathlib.Path(__file__).parents[2] / "core" / "models" / "default.affw"
-    assert affinity.Denoiser().model.precision == expected
-    assert affinity.Denoiser(model_file).model.precision == expected
-    assert affinity.Model.built_in().precision == affinity.Model.from_file(model_file).precision == expected
-    assert affinity.Denoiser(precision="auto").model.precision == expected
-    assert affinity.Denoiser(precision="fp32").model.precision == "fp32"
-    assert affinity.Denoiser(model_file, precision="fp32").model.precision == "fp32"
-    by_default, resolved = affinity.Denoiser(), affinity.Denoiser(precision=expected)
+    assert affinity_core.Denoiser().model.precision == expected
+    assert affinity_core.Denoiser(model_file).model.precision == expected
+    assert affinity_core.Model.built_in().precision == affinity_core.Model.from_file(model_file).precision == expected
+    assert affinity_core.Denoiser(precision="auto").model.precision == expected
+    assert affinity_core.Denoiser(precision="fp32").model.precision == "fp32"
+    assert affinity_core.Denoiser(model_file, precision="fp32").model.precision == "fp32"
+    by_default, resolved = affinity_core.Denoiser(), affinity_core.Denoiser(precision=expected)
     for frame in sequence:
         np.testing.assert_array_equal(by_default.denoise(frame), resolved.denoise(frame))
 
 
 def test_ablations_are_named_and_unknown_ones_refused():
-    model = affinity.Model.built_in()
-    for ablation in affinity.Denoiser.ABLATIONS:
-        assert affinity.Denoiser(model, ablation=ablation).ablation == ablation
+    model = affinity_core.Model.built_in()
+    for ablation in affinity_core.Denoiser.ABLATIONS:
+        assert affinity_core.Denoiser(model, ablation=ablation).ablation == ablation
     with pytest.raises(ValueError, match="unknown ablation 'no_unet'"):
-        affinity.Denoiser(model, ablation="no_unet")
+        affinity_core.Denoiser(model, ablation="no_unet")
 
 
 def test_single_frame_ablation_ignores_history_and_stages_are_timed(sequence: list[dict]) -> None:
     # The ablation keeps the sequence's exposure (set by frame 0's radiance) and nothing else of
     # it: after a frame 0 with the same radiance but frame 2's other features, the same output.
-    ablated, other = affinity.Denoiser(ablation="single_frame"), affinity.Denoiser(ablation="single_frame")
+    ablated, other = affinity_core.Denoiser(ablation="single_frame"), affinity_core.Denoiser(ablation="single_frame")
     ablated.denoise(sequence[0])
     second = ablated.denoise(sequence[1])
     assert not ablated.last_report["used_history"]
@@ -131,7 +131,7 @@ def test_single_frame_ablation_ignores_history_and_stages_are_timed(sequence: li
     other.denoise(unlike)
     np.testing.assert_array_equal(second, other.denoise(sequence[1]))
     assert other.last_report["exposure"] == ablated.last_report["exposure"]
-    full = affinity.Denoiser()
+    full = affinity_core.Denoiser()
     full.denoise(sequence[0])
     assert np.abs(full.denoise(sequence[1]) - second).max() > 1e-3  # the ablation changed something
     stages = ablated.last_report["stage_ms"]
@@ -148,7 +148,7 @@ def test_a_scene_far_brighter_than_the_training_scenes_is_denoised_alike(sequenc
         samples[..., :6] *= factor
         return {**frame, "samples": samples}
 
-    a, b = affinity.Denoiser(), affinity.Denoiser()
+    a, b = affinity_core.Denoiser(), affinity_core.Denoiser()
     for frame in sequence:
         low, high = a.denoise(brighter(frame, 100.0)), b.denoise(brighter(frame, 1000.0))
         np.testing.assert_allclose(high, 10.0 * low, rtol=1e-4, atol=1e-3)
@@ -163,7 +163,7 @@ def test_any_array_layout_gives_the_same_output(sequence: list[dict]) -> None:
     strided["samples"] = np.asfortranarray(frame["samples"])
     strided["motion"] = frame["motion"][::-1][::-1]  # a view with the same values
     strided["valid"] = np.ascontiguousarray(frame["valid"], dtype=np.float64).astype(np.float32)
-    np.testing.assert_array_equal(affinity.Denoiser().denoise(strided), affinity.Denoiser().denoise(frame))
+    np.testing.assert_array_equal(affinity_core.Denoiser().denoise(strided), affinity_core.Denoiser().denoise(frame))
     assert frame["samples"].flags["C_CONTIGUOUS"]  # the input was not touched
 
 
@@ -180,7 +180,7 @@ def _with_sample0_depth(frame: dict, radiance: bool = False) -> dict:
 def test_streamed_samples_equal_the_whole_frame(sequence: list[dict]) -> None:
     # The exposure comes from the first batch of the sequence's first frame.
     frames = [_with_sample0_depth(f, radiance=i == 0) for i, f in enumerate(sequence)]
-    whole, stream = affinity.Denoiser(), affinity.Denoiser()
+    whole, stream = affinity_core.Denoiser(), affinity_core.Denoiser()
     for frame in frames:
         expected = whole.denoise(frame)
         spp = frame["samples"].shape[2]
@@ -195,8 +195,8 @@ def test_streamed_samples_equal_the_whole_frame(sequence: list[dict]) -> None:
 
 def test_streamed_depth_normalisation_comes_from_the_first_batch(sequence: list[dict]) -> None:
     frame = sequence[0]
-    expected = affinity.Denoiser().denoise(frame)
-    stream = affinity.Denoiser()
+    expected = affinity_core.Denoiser().denoise(frame)
+    stream = affinity_core.Denoiser()
     stream.add_samples(frame["samples"][:, :, :1])
     stream.add_samples(frame["samples"][:, :, 1:])
     got = stream.finish_frame({k: v for k, v in frame.items() if k != "samples"})
@@ -207,7 +207,7 @@ def test_streamed_depth_normalisation_comes_from_the_first_batch(sequence: list[
 def test_streaming_misuse_names_the_problem(sequence: list[dict]) -> None:
     frame = sequence[0]
     rest = {k: v for k, v in frame.items() if k != "samples"}
-    denoiser = affinity.Denoiser()
+    denoiser = affinity_core.Denoiser()
     with pytest.raises(ValueError, match="no samples were added"):
         denoiser.finish_frame(rest)
     denoiser.add_samples(frame["samples"])
@@ -217,11 +217,11 @@ def test_streaming_misuse_names_the_problem(sequence: list[dict]) -> None:
         denoiser.add_samples(np.zeros((30, 40, 17), np.float32))
     with pytest.raises(ValueError, match=r"frame\['motion'\] has shape"):
         denoiser.finish_frame({**rest, "motion": np.zeros((30, 41, 2), np.float32)})
-    with pytest.raises(affinity.Error, match="wait for finishFrame"):
+    with pytest.raises(affinity_core.Error, match="wait for finishFrame"):
         denoiser.denoise(frame)
     denoiser.discard_samples()
     assert denoiser.pending_samples == 0
-    np.testing.assert_array_equal(denoiser.denoise(frame), affinity.Denoiser().denoise(frame))
+    np.testing.assert_array_equal(denoiser.denoise(frame), affinity_core.Denoiser().denoise(frame))
 
 
 @pytest.fixture(scope="module")
@@ -229,18 +229,18 @@ def frame_files(tmp_path_factory: pytest.TempPathFactory) -> list[str]:
     out = tmp_path_factory.mktemp("files") / "frames"
     subprocess.run([str(CLI), "render", "--scene", "disocclusion", "--frames", "3", "--spp", "4", "--size", "36x24",
                     "--reference-spp", "16", "--out", str(out)], check=True, capture_output=True, timeout=300)
-    return affinity.list_frame_files(out)
+    return affinity_core.list_frame_files(out)
 
 
 def test_denoise_file_equals_denoising_the_read_frame(frame_files: list[str]) -> None:
-    from_files, from_frames = affinity.Denoiser(), affinity.Denoiser()
+    from_files, from_frames = affinity_core.Denoiser(), affinity_core.Denoiser()
     for path in frame_files:
-        expected = from_frames.denoise(affinity.read_frame(path))
+        expected = from_frames.denoise(affinity_core.read_frame(path))
         got, frame = from_files.denoise_file(path)
         np.testing.assert_array_equal(got, expected)
         assert from_files.last_report["used_history"] == from_frames.last_report["used_history"]
         assert from_files.pending_samples == 0
-        read = affinity.read_frame(path)
+        read = affinity_core.read_frame(path)
         assert frame["samples"] is None
         for key in ("motion", "valid", "reference"):
             np.testing.assert_array_equal(frame[key], read[key])
@@ -255,20 +255,20 @@ def test_denoise_file_failures_leave_nothing_waiting(frame_files: list[str], tmp
     data = bytearray(pathlib.Path(frame_files[0]).read_bytes())
     data[len(data) // 2] ^= 0xFF  # past the header: the samples are lent, then the read fails
     corrupt.write_bytes(bytes(data))
-    denoiser = affinity.Denoiser()
-    with pytest.raises(affinity.Error, match="frame_0000.exr"):
+    denoiser = affinity_core.Denoiser()
+    with pytest.raises(affinity_core.Error, match="frame_0000.exr"):
         denoiser.denoise_file(corrupt)
     assert denoiser.pending_samples == 0
     got, _ = denoiser.denoise_file(frame_files[0])
-    np.testing.assert_array_equal(got, affinity.Denoiser().denoise(affinity.read_frame(frame_files[0])))
-    denoiser.add_samples(affinity.read_frame(frame_files[1])["samples"])
+    np.testing.assert_array_equal(got, affinity_core.Denoiser().denoise(affinity_core.read_frame(frame_files[0])))
+    denoiser.add_samples(affinity_core.read_frame(frame_files[1])["samples"])
     with pytest.raises(ValueError, match="wait for finish_frame"):
         denoiser.denoise_file(frame_files[1])
     assert denoiser.pending_samples == 4
 
 
 def test_the_report_gives_the_memory_of_the_denoisers_buffers(frame_files: list[str]) -> None:
-    denoiser = affinity.Denoiser()
+    denoiser = affinity_core.Denoiser()
     sizes = []
     for path in frame_files:
         denoiser.denoise_file(path)
@@ -288,7 +288,7 @@ def _large_frame(frame: dict) -> dict:
 def test_a_second_call_while_one_runs_is_refused(sequence: list[dict]) -> None:
     """Issue 42, item 1: two threads on one Denoiser crashed or failed with internal errors."""
     frame = _large_frame(sequence[0])
-    denoiser = affinity.Denoiser()
+    denoiser = affinity_core.Denoiser()
     start = threading.Barrier(2)
     outputs: list[np.ndarray] = []
     errors: list[Exception] = []
@@ -297,7 +297,7 @@ def test_a_second_call_while_one_runs_is_refused(sequence: list[dict]) -> None:
         start.wait()
         try:
             outputs.append(denoiser.denoise(frame))
-        except affinity.Error as error:
+        except affinity_core.Error as error:
             errors.append(error)
 
     threads = [threading.Thread(target=call) for _ in range(2)]
@@ -307,14 +307,14 @@ def test_a_second_call_while_one_runs_is_refused(sequence: list[dict]) -> None:
         thread.join()
     assert len(outputs) == 1 and len(errors) == 1
     assert "the Denoiser is busy with another call" in str(errors[0])
-    np.testing.assert_array_equal(outputs[0], affinity.Denoiser().denoise(frame))
+    np.testing.assert_array_equal(outputs[0], affinity_core.Denoiser().denoise(frame))
 
 
 def test_ctrl_c_stops_a_frame_and_the_next_starts_a_new_sequence(sequence: list[dict]) -> None:
     """Issue 42, item 11: KeyboardInterrupt came only when the native call returned. Now the
     frame is abandoned, so the frame after it has no history to use."""
     frames = [_large_frame(frame) for frame in sequence]
-    denoiser = affinity.Denoiser()
+    denoiser = affinity_core.Denoiser()
     denoiser.denoise(frames[0])
     timer = threading.Timer(0.05, os.kill, (os.getpid(), signal.SIGINT))
     timer.start()
@@ -323,18 +323,18 @@ def test_ctrl_c_stops_a_frame_and_the_next_starts_a_new_sequence(sequence: list[
     timer.join()
     after = denoiser.denoise(frames[2])
     assert denoiser.last_report["used_history"] is False
-    np.testing.assert_array_equal(after, affinity.Denoiser().denoise(frames[2]))
+    np.testing.assert_array_equal(after, affinity_core.Denoiser().denoise(frames[2]))
 
 
 @pytest.mark.parametrize("copy_call", [copy.copy, copy.deepcopy, pickle.dumps], ids=["copy", "deepcopy", "pickle"])
 def test_a_denoiser_cannot_be_copied(copy_call: Callable[[Any], Any]) -> None:
     """Issue 42, item 12: copy.copy shared the native history between two objects."""
     with pytest.raises(TypeError, match="cannot be copied or pickled"):
-        copy_call(affinity.Denoiser())
+        copy_call(affinity_core.Denoiser())
 
 
 def test_the_module_reports_its_version() -> None:
-    """Issue 40, item 5: ``affinity.__version__`` is the version the wheel is built with: the
+    """Issue 40, item 5: ``affinity_core.__version__`` is the version the wheel is built with: the
     CMake project version, which pyproject.toml reads with its own regex (one source of truth)."""
     import re
     import tomllib
@@ -345,4 +345,4 @@ def test_the_module_reports_its_version() -> None:
     assert rule["field"] == "version"
     match = re.search(rule["regex"], (root / rule["input"]).read_text(encoding="utf-8"))
     assert match is not None
-    assert affinity.__version__ == match.group("value")
+    assert affinity_core.__version__ == match.group("value")

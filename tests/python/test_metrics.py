@@ -1,4 +1,4 @@
-"""affinity.metrics: every definition on small images with values worked out by hand."""
+"""affinity_core.metrics: every definition on small images with values worked out by hand."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from affinity import metrics
+from affinity_core import metrics
 
 
 def image(*values: float) -> np.ndarray:

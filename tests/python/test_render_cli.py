@@ -13,7 +13,7 @@ import time
 import numpy as np
 import pytest
 
-import affinity
+import affinity_core
 
 BUILD = pathlib.Path(os.environ.get("AFFINITY_BUILD_DIR", pathlib.Path(__file__).parents[2] / "build"))
 CLI = BUILD / "core" / "affinity"
@@ -28,9 +28,9 @@ def render(out: pathlib.Path, *extra: str, scene: str = "disocclusion") -> subpr
 def test_render_writes_frames_the_module_reads(tmp_path: pathlib.Path) -> None:
     result = render(tmp_path / "seq", "--previews")
     assert result.returncode == 0, result.stderr
-    frames = affinity.list_frame_files(tmp_path / "seq")
+    frames = affinity_core.list_frame_files(tmp_path / "seq")
     assert [pathlib.Path(f).name for f in frames] == ["frame_0000.exr", "frame_0001.exr"]
-    first, second = (affinity.read_frame(f) for f in frames)
+    first, second = (affinity_core.read_frame(f) for f in frames)
     assert first["samples"].shape == (16, 24, 3, 18)
     assert first["reference"].shape == (16, 24, 3)
     assert first["info"]["scene_name"] == "disocclusion"
@@ -50,8 +50,8 @@ def test_render_writes_frames_the_module_reads(tmp_path: pathlib.Path) -> None:
 def test_same_seed_gives_identical_frames(tmp_path: pathlib.Path) -> None:
     assert render(tmp_path / "a", scene="procedural:3").returncode == 0
     assert render(tmp_path / "b", scene="procedural:3").returncode == 0
-    a = affinity.read_frame(tmp_path / "a" / "frame_0001.exr")
-    b = affinity.read_frame(tmp_path / "b" / "frame_0001.exr")
+    a = affinity_core.read_frame(tmp_path / "a" / "frame_0001.exr")
+    b = affinity_core.read_frame(tmp_path / "b" / "frame_0001.exr")
     np.testing.assert_array_equal(a["samples"], b["samples"])
     np.testing.assert_array_equal(a["reference"], b["reference"])
 
@@ -80,7 +80,7 @@ def test_existing_frames_are_not_overwritten_without_force(tmp_path: pathlib.Pat
     assert "--force" in result.stderr
     assert (out / "frame_0000.exr").read_bytes() == before
     assert render(out, "--spp", "1", "--force").returncode == 0
-    assert affinity.read_frame(out / "frame_0000.exr")["samples"].shape[2] == 1
+    assert affinity_core.read_frame(out / "frame_0000.exr")["samples"].shape[2] == 1
 
 
 def test_cycles_feature_convention_keeps_the_paths_and_changes_the_features(tmp_path: pathlib.Path) -> None:
@@ -89,7 +89,7 @@ def test_cycles_feature_convention_keeps_the_paths_and_changes_the_features(tmp_
     assert render(tmp_path / "default", scene="glossy").returncode == 0
     assert render(tmp_path / "ours", "--feature-convention", "renderer", scene="glossy").returncode == 0
     assert render(tmp_path / "cycles", "--feature-convention", "cycles", scene="glossy").returncode == 0
-    default, ours, cycles = (affinity.read_frame(tmp_path / name / "frame_0001.exr")
+    default, ours, cycles = (affinity_core.read_frame(tmp_path / name / "frame_0001.exr")
                              for name in ("default", "ours", "cycles"))
     np.testing.assert_array_equal(default["samples"], ours["samples"])
     np.testing.assert_array_equal(ours["reference"], cycles["reference"])
@@ -133,13 +133,13 @@ def test_force_replaces_a_longer_sequence_entirely(tmp_path: pathlib.Path) -> No
     names = sorted(p.name for p in out.iterdir())
     assert names == sorted(["frame_0000.exr", "frame_0001.exr", "scene.json", "render_summary.json",
                             "frame_0007.exr", *others])
-    assert [pathlib.Path(f).name for f in affinity.list_frame_files(out)] == ["frame_0000.exr", "frame_0001.exr"]
+    assert [pathlib.Path(f).name for f in affinity_core.list_frame_files(out)] == ["frame_0000.exr", "frame_0001.exr"]
     assert json.loads((out / "render_summary.json").read_text())["frames"] == 2
     for name, text in others.items():
         assert (out / name).read_text() == text
     # A later first frame: the earlier frames before it go too.
     assert render(out, "--frames", "1", "--first-frame", "5", "--previews", "--force").returncode == 0
-    assert [pathlib.Path(f).name for f in affinity.list_frame_files(out)] == ["frame_0005.exr"]
+    assert [pathlib.Path(f).name for f in affinity_core.list_frame_files(out)] == ["frame_0005.exr"]
     assert sorted(p.name for p in out.glob("*.png")) == ["frame_0002.png", "noisy_0005.png", "reference_0005.png"]
 
 
@@ -192,13 +192,13 @@ def test_ctrl_c_keeps_finished_frames_and_writes_their_summary(tmp_path: pathlib
     run, stderr, out = _interrupt_render(tmp_path, "frame_0000.exr")
     assert run.returncode == 130, stderr
     assert not list(out.glob("*.tmp-*"))
-    frames = affinity.list_frame_files(out)
+    frames = affinity_core.list_frame_files(out)
     assert 0 < len(frames) < 50
     summary = json.loads((out / "render_summary.json").read_text())
     assert summary["interrupted"] is True and summary["requested_frames"] == 50
     assert summary["frames"] == len(summary["per_frame"]) == len(frames)
     for path in frames:  # every frame kept is whole
-        assert affinity.read_frame(path)["samples"].shape == (240, 320, 4, affinity.FEATURE_COUNT)
+        assert affinity_core.read_frame(path)["samples"].shape == (240, 320, 4, affinity_core.FEATURE_COUNT)
     assert "interrupted after" in stderr
 
 

@@ -1,4 +1,4 @@
-"""affinity.Svgf from Python: settings, finite output, history, and better than the noisy input."""
+"""affinity_core.Svgf from Python: settings, finite output, history, and better than the noisy input."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from gil_check import python_ticks_during
 
-import affinity
+import affinity_core
 
 BUILD = pathlib.Path(os.environ.get("AFFINITY_BUILD_DIR", pathlib.Path(__file__).parents[2] / "build"))
 CLI = BUILD / "core" / "affinity"
@@ -21,7 +21,7 @@ def sequence(tmp_path_factory: pytest.TempPathFactory) -> list[dict]:
     out = tmp_path_factory.mktemp("seq") / "frames"
     subprocess.run([str(CLI), "render", "--scene", "disocclusion", "--frames", "8", "--spp", "2", "--size", "48x36",
                     "--reference-spp", "64", "--out", str(out)], check=True, capture_output=True, timeout=300)
-    return [affinity.read_frame(f) for f in affinity.list_frame_files(out)]
+    return [affinity_core.read_frame(f) for f in affinity_core.list_frame_files(out)]
 
 
 def noisy(frame: dict) -> np.ndarray:
@@ -34,22 +34,22 @@ def relmse(image: np.ndarray, reference: np.ndarray) -> float:
 
 
 def test_settings_default_to_the_paper_and_are_checked() -> None:
-    settings = affinity.Svgf().settings
+    settings = affinity_core.Svgf().settings
     assert settings["atrous_iterations"] == 5 and settings["history_cap"] == 32
     assert settings["sigma_depth"] == 1.0 and settings["sigma_normal"] == 128.0
     assert settings["sigma_luminance"] == 4.0
     assert settings["alpha_color"] == 0.2 and settings["alpha_moments"] == 0.2
-    custom = affinity.Svgf(sigma_luminance=2.5, atrous_iterations=3, alpha_color=0.3).settings
+    custom = affinity_core.Svgf(sigma_luminance=2.5, atrous_iterations=3, alpha_color=0.3).settings
     assert custom["atrous_iterations"] == 3 and custom["alpha_color"] == 0.3
-    assert affinity.Svgf(**custom).settings == custom  # settings round-trip through the dict
-    with pytest.raises(affinity.Error, match="alphaColor"):
-        affinity.Svgf(alpha_color=0.0)
+    assert affinity_core.Svgf(**custom).settings == custom  # settings round-trip through the dict
+    with pytest.raises(affinity_core.Error, match="alphaColor"):
+        affinity_core.Svgf(alpha_color=0.0)
     with pytest.raises(TypeError):
-        affinity.Svgf(5)  # keyword-only
+        affinity_core.Svgf(5)  # keyword-only
 
 
 def test_filters_a_rendered_sequence_closer_to_the_reference(sequence: list[dict]) -> None:
-    svgf = affinity.Svgf()
+    svgf = affinity_core.Svgf()
     noisy_error, svgf_error = [], []
     for frame in sequence:
         out = svgf.denoise(frame)
@@ -63,11 +63,11 @@ def test_filters_a_rendered_sequence_closer_to_the_reference(sequence: list[dict
 
 
 def test_reset_makes_the_next_frame_independent_of_the_past(sequence: list[dict]) -> None:
-    a, b = affinity.Svgf(), affinity.Svgf()
+    a, b = affinity_core.Svgf(), affinity_core.Svgf()
     a.denoise(sequence[0])
     a.reset()
     np.testing.assert_array_equal(a.denoise(sequence[1]), b.denoise(sequence[1]))
-    c = affinity.Svgf()
+    c = affinity_core.Svgf()
     c.denoise(sequence[0])
     assert not np.array_equal(c.denoise(sequence[1]), b.denoise(sequence[1]))
 
@@ -75,7 +75,7 @@ def test_reset_makes_the_next_frame_independent_of_the_past(sequence: list[dict]
 def test_hand_made_frame_with_bad_radiance_gives_finite_output() -> None:
     rng = np.random.default_rng(1)
     h, w, spp = 5, 7, 2
-    samples = np.zeros((h, w, spp, affinity.FEATURE_COUNT), np.float32)
+    samples = np.zeros((h, w, spp, affinity_core.FEATURE_COUNT), np.float32)
     samples[..., 0:3] = rng.uniform(0, 1, (h, w, spp, 3))
     samples[..., 8] = 1.0  # normal +Z
     samples[..., 9] = 3.0  # depth
@@ -91,7 +91,7 @@ def test_hand_made_frame_with_bad_radiance_gives_finite_output() -> None:
         "info": {"scene_name": "hand", "frame_index": 0, "reference_spp": 0, "seed": 0,
                  "world_to_camera": np.eye(4, dtype=np.float32), "camera_to_clip": np.eye(4, dtype=np.float32)},
     }
-    svgf = affinity.Svgf()
+    svgf = affinity_core.Svgf()
     for _ in range(3):
         out = svgf.denoise(frame)
         assert out.shape == (h, w, 3) and np.isfinite(out).all()
@@ -104,6 +104,6 @@ def test_the_gil_is_released_while_denoising(sequence: list[dict]) -> None:
     big = {**frame, "samples": np.tile(frame["samples"], (8, 8, 1, 1)),
            "motion": np.zeros((288, 384, 2), np.float32), "valid": np.zeros((288, 384), np.float32),
            "reference": None}
-    svgf = affinity.Svgf()
+    svgf = affinity_core.Svgf()
     during = python_ticks_during(lambda: [svgf.denoise(big) for _ in range(3)])
     assert during > 1000  # Python code ran while the native filter worked

@@ -7,7 +7,7 @@ import numpy as np
 
 
 def tiled_frame(frame: dict, tiles: int) -> dict:
-    """`frame` (as affinity.read_frame gives it) tiled `tiles` x `tiles` times, without a reference."""
+    """`frame` (as affinity_core.read_frame gives it) tiled `tiles` x `tiles` times, without a reference."""
     return {
         **frame,
         "samples": np.ascontiguousarray(np.tile(frame["samples"], (tiles, tiles, 1, 1))),

@@ -84,12 +84,12 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
                      progress: Callable[[str], None] = lambda text: None) -> dict[str, Any]:
     """Renders every frame of ``scene`` (frame_start..frame_end) into ``folder`` (created; must
     not hold frames yet) and returns the summary also written to render_summary.json."""
-    import affinity
-    from affinity import metrics
+    import affinity_core
+    from affinity_core import metrics
 
     frames = list(range(scene.frame_start, scene.frame_end + 1))
     os.makedirs(folder, exist_ok=True)
-    if affinity.list_frame_files(folder):
+    if affinity_core.list_frame_files(folder):
         raise FileExistsError(f"{folder} already holds frame files")
     scratch = os.path.join(folder, "extension_output")  # the run's own denoised frames
     start = time.perf_counter()
@@ -129,7 +129,7 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         frame["reference"] = np.mean(targets, axis=0).astype(np.float32)
         frame["info"]["reference_spp"] = settings.target_spp * settings.targets
         frame["info"]["frame_index"] = index
-        affinity.write_frame(os.path.join(folder, affinity.frame_file_name(index)), frame)
+        affinity_core.write_frame(os.path.join(folder, affinity_core.frame_file_name(index)), frame)
     if oidn:
         np.savez_compressed(os.path.join(folder, "blender_oidn.npz"), **oidn)
     if halves:

@@ -1,6 +1,6 @@
 #pragma once
 // Image error metrics on linear RGB buffers of equal size (n floats). Definitions follow
-// docs/METHOD.md section 10; Python: affinity.metrics.
+// docs/METHOD.md section 10; Python: affinity_core.metrics.
 #include <cstddef>
 
 namespace affinity {

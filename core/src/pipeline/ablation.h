@@ -1,6 +1,6 @@
 #pragma once
 // Parts of the trained pipeline switched off at inference, for the ablation rows of the benchmark
-// (docs/BENCHMARK.md; Python: affinity.Denoiser(ablation=...)). Internal: measuring what a part
+// (docs/BENCHMARK.md; Python: affinity_core.Denoiser(ablation=...)). Internal: measuring what a part
 // buys is not something a user of the library asks for, so core/include does not offer it.
 #include "affinity/denoiser.h"
 

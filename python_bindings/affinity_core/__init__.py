@@ -1,4 +1,4 @@
-"""affinity: frame files of per-sample render features, as numpy arrays.
+"""affinity_core: frame files of per-sample render features, as numpy arrays.
 
 A frame is a dict::
 
@@ -62,15 +62,16 @@ def _version() -> str:
     """The version of this build: one source, the ``project(affinity VERSION ...)`` line of the
     top-level CMakeLists.txt, which pyproject.toml reads for the wheel's metadata.
 
-    An installed wheel: the metadata beside this package (only there: an unrelated PyPI project
-    is also called ``affinity``). A build tree (``<build>/python/affinity``): CMakeLists.txt of
+    An installed wheel: the metadata of the distribution ``affinity-core`` beside this package
+    (a shared site-packages, such as Blender's, holds other projects' metadata too). A build tree
+    (``<build>/python/affinity_core``): CMakeLists.txt of
     the source folder that ``<build>/CMakeCache.txt`` names. Otherwise "0+unknown"."""
     import re
     from importlib import metadata
 
     package = os.path.dirname(os.path.abspath(__file__))
     for distribution in metadata.distributions(path=[os.path.dirname(package)]):
-        if (distribution.metadata["Name"] or "").lower() == "affinity":
+        if re.sub(r"[-_.]+", "-", distribution.metadata["Name"] or "").lower() == "affinity-core":
             return distribution.version
     try:
         with open(os.path.join(package, "..", "..", "CMakeCache.txt"), encoding="utf-8") as handle:
@@ -93,7 +94,7 @@ __version__: str = _version()
 def read_frame(path: str | os.PathLike[str]) -> dict[str, Any]:
     """Reads a frame file into a frame dict (see the module docstring).
 
-    The arrays are freshly allocated and writable. Raises ``affinity.Error`` naming the file for
+    The arrays are freshly allocated and writable. Raises ``affinity_core.Error`` naming the file for
     a missing, incomplete, corrupt or non-conforming file.
     """
     return _core.read_frame(os.fspath(path))
@@ -107,7 +108,7 @@ def write_frame(
     Every key except "reference" is required, "reference" may be None or absent; every array
     must be float32 with the documented shape (any memory layout). ``compression`` is "none",
     "zip" or "piz" (all lossless). Raises ``ValueError``/``TypeError``/``KeyError`` naming the
-    offending key for malformed input, ``affinity.Error`` when writing fails.
+    offending key for malformed input, ``affinity_core.Error`` when writing fails.
     """
     _core.write_frame(os.fspath(path), frame, compression)
 
@@ -120,7 +121,7 @@ def frame_file_name(frame_index: int) -> str:
 def list_frame_files(directory: str | os.PathLike[str]) -> list[str]:
     """Paths of the frame files in a sequence folder, in frame order.
 
-    Raises ``affinity.Error`` if the folder does not exist.
+    Raises ``affinity_core.Error`` if the folder does not exist.
     """
     return _core.list_frame_files(os.fspath(directory))
 
@@ -146,13 +147,13 @@ class Denoiser:
     history is also dropped automatically when the frame size changes or the camera jumps.
     The GIL is released while denoising; Ctrl-C (KeyboardInterrupt) stops a frame between its
     steps, and the next frame then starts a new sequence as after ``reset()``. A Denoiser takes
-    one call at a time: a call from another thread while one runs raises ``affinity.Error``
+    one call at a time: a call from another thread while one runs raises ``affinity_core.Error``
     (give each thread its own Denoiser). It cannot be copied or pickled.
 
     ``precision`` is the arithmetic of the network's products: "auto" (the default) takes them
-    in bfloat16 where the CPU has AVX512-BF16 (``affinity.bfloat16_supported()``; faster, SMAPE and
+    in bfloat16 where the CPU has AVX512-BF16 (``affinity_core.bfloat16_supported()``; faster, SMAPE and
     temporal error equal to the fourth digit: docs/MODEL.md, "bfloat16 products") and in FP32
-    elsewhere; "fp32" and "bf16" ask for one ("bf16" raises ``affinity.Error`` on other CPUs).
+    elsewhere; "fp32" and "bf16" ask for one ("bf16" raises ``affinity_core.Error`` on other CPUs).
     ``model.precision`` says which ran. A model given as a ``Model`` keeps its own precision.
 
     ``ablation`` switches off one part of the trained pipeline, for measuring what it buys:
@@ -241,8 +242,8 @@ class Denoiser:
     # copies fed different frames would corrupt each other's sequence.
     def _refuse_copy(self, *_: Any) -> Any:
         raise TypeError(
-            "an affinity.Denoiser holds one sequence's history and cannot be copied or pickled; "
-            "make a new affinity.Denoiser(model) instead (its history starts empty)"
+            "an affinity_core.Denoiser holds one sequence's history and cannot be copied or pickled; "
+            "make a new affinity_core.Denoiser(model) instead (its history starts empty)"
         )
 
     __copy__ = __deepcopy__ = __reduce_ex__ = _refuse_copy
