@@ -18,7 +18,10 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+#: The capture engine (internal: sub-renders and presenting a denoised frame).
 IDNAME = "AFFINITY_DENOISER_CYCLES"
+#: The engine users choose, "Cycles + Affinity Denoiser" (render_engine.py).
+DENOISING_ENGINE = "AFFINITY_DENOISER"
 
 _engine_class: type | None = None
 
@@ -36,24 +39,29 @@ session = _Session()
 T = TypeVar("T")
 
 
-def render_and_capture(read: Callable[[Any], T]) -> tuple[T | None, float]:
+def render_and_capture(read: Callable[[Any], T], scene: str = "", layer: str = "") -> tuple[T | None, float]:
     """Renders the scene once (``bpy.ops.render.render``, the scene's engine set to this one)
     and returns what ``read`` made of the finished render result, or None when the render was
-    cancelled, and the render's wall seconds."""
+    cancelled, and the render's wall seconds. ``scene`` and ``layer`` name what to render where
+    the context does not (a background process has no window)."""
     import bpy
 
     captured: list[T] = []
     session.sink = lambda result: captured.append(read(result))
     start = time.perf_counter()
     try:
-        bpy.ops.render.render()
+        bpy.ops.render.render(scene=scene, layer=layer)
     finally:
         session.sink = None
     return (captured[0] if captured else None), time.perf_counter() - start
 
 
-def _write_result(engine: Any, width: int, height: int, frame: dict[str, np.ndarray]) -> None:
-    result = engine.begin_result(0, 0, width, height)
+def write_result(engine: Any, width: int, height: int, frame: dict[str, np.ndarray],
+                 layer: str = "") -> None:
+    """Fills ``engine``'s render result (of view layer ``layer``; the one being rendered when
+    empty) with the images of ``frame`` by pass name, bottom row first as Blender wants;
+    passes ``frame`` lacks are zero."""
+    result = engine.begin_result(0, 0, width, height, layer=layer)
     try:
         for render_pass in result.layers[0].passes:
             image = frame.get(render_pass.name)
@@ -70,17 +78,16 @@ _NOT_COPIED = {"__module__", "__qualname__", "__doc__", "__dict__", "__weakref__
                "bl_idname", "bl_label", "bl_rna"}
 
 
-def _make_engine_class() -> type:
-    """A RenderEngine that runs Cycles' own engine code, with our hooks around it.
+def cycles_namespace() -> dict[str, Any]:
+    """Cycles' engine methods and ``bl_use_*`` flags, for an engine class that runs Cycles' own
+    engine code with hooks around it.
 
-    It is *not* a subclass of ``cycles.CyclesRender``: registering a subclass of a registered
-    class takes the base class off its RNA type (Blender's ``pyrna_register_class``), after
-    which every call into the real Cycles engine failed with "unable to get Python class for
-    RNA struct 'CYCLES'" and plain Cycles renders came out black, even after unregistering.
-    Instead the class derives from ``bpy.types.RenderEngine`` and copies Cycles' methods and
-    ``bl_use_*`` flags; those call ``cycles.engine`` with the engine instance, whatever its
-    class."""
-    import bpy
+    Such a class is *not* a subclass of ``cycles.CyclesRender``: registering a subclass of a
+    registered class takes the base class off its RNA type (Blender's ``pyrna_register_class``),
+    after which every call into the real Cycles engine failed with "unable to get Python class
+    for RNA struct 'CYCLES'" and plain Cycles renders came out black, even after unregistering.
+    Instead it derives from ``bpy.types.RenderEngine`` and copies these; they call
+    ``cycles.engine`` with the engine instance, whatever its class."""
     import cycles  # Blender's bundled Cycles add-on
 
     namespace: dict[str, Any] = {}
@@ -92,6 +99,14 @@ def _make_engine_class() -> type:
             # Zero-argument super() would need a CyclesRender instance.
             raise RuntimeError(f"cycles.CyclesRender.{name} uses super(): cannot be reused")
         namespace[name] = value
+    return namespace
+
+
+def _make_engine_class() -> type:
+    """The capture engine: Cycles with in-memory pass capture, or presenting a given frame."""
+    import bpy
+
+    namespace = cycles_namespace()
     cycles_methods = dict(namespace)
 
     def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
@@ -108,7 +123,7 @@ def _make_engine_class() -> type:
             scale = scene.render.resolution_percentage / 100.0
             width = int(scene.render.resolution_x * scale)
             height = int(scene.render.resolution_y * scale)
-            _write_result(self, width, height, session.present)
+            write_result(self, width, height, session.present)
             return
         cycles_methods["render"](self, depsgraph)
 
@@ -130,6 +145,10 @@ def _make_engine_class() -> type:
         bl_label="Cycles (Affinity Denoiser capture)",
     )
     return type("AffinityCyclesEngine", (bpy.types.RenderEngine,), namespace)
+
+
+def is_registered() -> bool:
+    return _engine_class is not None
 
 
 def register() -> None:

@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import os
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -53,11 +54,13 @@ def engine_name(identifier: str) -> str:
 
 
 def cycles_problem(scene: Any) -> str:
-    """Empty when ``scene`` renders with Cycles; else the message that says it must."""
-    if scene.render.engine == "CYCLES":
+    """Empty when ``scene`` renders with Cycles (or Cycles + Affinity Denoiser); else the
+    message that says it must."""
+    if scene.render.engine in ("CYCLES", engine.DENOISING_ENGINE):
         return ""
     return (f"The Affinity Denoiser needs Cycles as the render engine, not "
-            f"{engine_name(scene.render.engine)}: choose Cycles in Render Properties")
+            f"{engine_name(scene.render.engine)}: choose Cycles + Affinity Denoiser (or Cycles) "
+            f"in Render Properties")
 
 
 class Cancelled(RuntimeError):
@@ -86,6 +89,18 @@ class Settings:
 
 
 @dataclass
+class DenoisedFrame:
+    """One frame captured and denoised: what writing and presenting it need."""
+
+    frame: int
+    rgba: np.ndarray  # (H, W, 4): the denoised radiance, alpha the samples' mean
+    noisy: np.ndarray  # (H, W, 3) mean of the samples' radiance
+    mean: dict[str, np.ndarray]  # every captured pass, averaged over the samples
+    frame_data: dict[str, Any]  # the core's input (its samples None when they were streamed)
+    report: dict[str, Any]  # the denoiser's report of the frame
+
+
+@dataclass
 class FrameResult:
     frame: int
     denoised_path: str
@@ -106,6 +121,198 @@ class Timings:
     denoise: list[float] = field(default_factory=list)
     present: list[float] = field(default_factory=list)
     write: list[float] = field(default_factory=list)
+
+
+def _activate_view_layer(overrides: Overrides, view_layer: Any) -> None:
+    import bpy
+
+    window = bpy.context.window
+    if window is not None and window.view_layer != view_layer:
+        overrides.set(window, "view_layer", view_layer)
+
+
+@contextmanager
+def capture_setup(scene: Any, view_layer: Any, samples_per_frame: int) -> Iterator[bool]:
+    """Sets ``scene`` up for one-sample sub-renders of ``view_layer`` through the capture
+    engine and yields the user's ``use_compositing``; every change is undone on leaving, also
+    on error or cancel, and the current frame is put back."""
+    import bpy
+
+    original_frame = (scene.frame_current, scene.frame_subframe)
+    try:
+        with Overrides() as overrides, passes.shader_aovs(view_layer), \
+                materials.surface_aovs(bpy.data):
+            render, cycles = scene.render, scene.cycles
+            use_compositing = bool(render.use_compositing)
+            passes.enable_passes(overrides, view_layer)
+            overrides.set(render, "engine", engine.IDNAME)
+            overrides.set(render, "use_persistent_data", True)
+            overrides.set(render, "use_single_layer", True)
+            overrides.set(render, "use_compositing", False)
+            overrides.set(render, "use_sequencer", False)
+            overrides.set(render, "use_border", False)  # features and motion cover the whole frame
+            overrides.set(cycles, "use_denoising", False)
+            overrides.set(cycles, "use_adaptive_sampling", False)
+            if uses_sample_subsets(cycles):  # samples = the whole set, one of them per render
+                overrides.set(cycles, "samples", samples_per_frame)
+                overrides.set(cycles, "use_sample_subset", True)
+                overrides.set(cycles, "sample_subset_length", 1)
+            else:  # render 1 sample starting at sample_offset
+                overrides.set_if_present(cycles, "use_sample_subset", False)
+                overrides.set(cycles, "samples", 1)
+            overrides.set(cycles, "sample_offset", 0)
+            # The denoise-render replaces the view layer's sample count, if it has one.
+            overrides.set_if_present(view_layer, "samples", 0)
+            _activate_view_layer(overrides, view_layer)
+            yield use_compositing
+    finally:
+        engine.session.sink = None
+        engine.session.present = None
+        scene.frame_set(original_frame[0], subframe=original_frame[1])
+
+
+class SequenceCapture:
+    """Captures and denoises successive frames of one view layer: per frame, S one-sample
+    sub-renders through the capture engine, their features to the core's Denoiser, which
+    carries the sequence's history. Runs inside ``capture_setup``."""
+
+    def __init__(self, scene: Any, view_layer: Any, settings: Settings, timings: Timings,
+                 keep_frames: bool = False) -> None:
+        import bpy
+
+        if not 1 <= settings.samples_per_frame <= MAX_SAMPLES_PER_FRAME:
+            raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
+        self.scene = scene
+        self.view_layer = view_layer
+        self.settings = settings
+        self.timings = timings
+        #: Keep each frame's per-sample data (frame files, tests): no streaming to the core.
+        self.keep_frames = keep_frames
+        self.denoiser = backend.create_denoiser(settings.model_path, settings.precision)
+        motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())  # fail early
+        self._previous: motion.FrameGeometry | None = None
+        self._names: dict[str, str] | None = None
+        #: The last frame denoised since the history began; None with no history.
+        self.last_frame: int | None = None
+
+    def reset(self) -> None:
+        """Forgets the history: the next frame starts a new sequence."""
+        self.denoiser.reset()
+        self._previous = None
+        self.last_frame = None
+
+    def frame(self, frame: int,
+              before_sample: Callable[[int], None] | None = None) -> Generator[int, None, DenoisedFrame]:
+        """Renders and denoises ``frame``; yields the number of its sub-renders done after each
+        one and returns the DenoisedFrame (``denoised = yield from capture.frame(f)``)."""
+        import bpy
+
+        scene, spp = self.scene, self.settings.samples_per_frame
+        scene.frame_set(frame)
+        depsgraph = bpy.context.evaluated_depsgraph_get()
+        camera = motion.scene_camera(scene, depsgraph)
+        start = time.perf_counter()
+        transforms = motion.object_transforms(depsgraph)
+        self.timings.motion.append(time.perf_counter() - start)
+        ray_start = motion.ray_start_distance(camera)
+        denoiser = self.denoiser
+        # Streaming hands each sample to the core as it is rendered, so the frame's
+        # per-sample features are never held together (at 4K, 8 spp: 4.8 GB); the whole
+        # frame is kept only where it is asked for.
+        stream = hasattr(denoiser, "add_samples") and not self.keep_frames
+        if stream and denoiser.pending_samples:
+            denoiser.discard_samples()  # left by an interrupted frame
+        samples = None if stream else np.empty(
+            (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
+        radiance = np.zeros((camera.height, camera.width, 3), np.float32)
+        streaming_seconds = 0.0  # the denoiser's share of the sample loop
+        sums: dict[str, np.ndarray] = {}
+        geometry = None
+        for sample in range(spp):
+            if before_sample is not None:
+                before_sample(sample)
+            captured = self._sub_render(sample)
+            start = time.perf_counter()
+            if self._names is None:
+                self._names = passes.resolve(captured)
+            names = self._names
+            sample_features = features.sample_features(
+                passes.by_role(captured, names), camera, ray_start)
+            radiance += sample_features[..., 0:3]
+            radiance += sample_features[..., 3:6]
+            self.timings.features.append(time.perf_counter() - start)
+            if samples is None:
+                start = time.perf_counter()
+                denoiser.add_samples(sample_features)
+                streaming_seconds += time.perf_counter() - start
+            else:
+                samples[:, :, sample] = sample_features
+            if sample == 0:  # Cycles writes Z for the sample at offset 0 only
+                geometry = self._geometry(captured, names, camera, transforms)
+            for name, image in captured.items():
+                if name in sums:
+                    sums[name] += image
+                else:
+                    sums[name] = image.copy()
+            yield sample + 1
+        assert geometry is not None
+        start = time.perf_counter()
+        motion_vectors, valid = motion.scene_motion(geometry, self._previous)
+        self.timings.motion.append(time.perf_counter() - start)
+        self._previous = geometry
+        frame_data = features.frame_dict(samples, motion_vectors, valid, camera,
+                                         scene.name, frame, scene.cycles.seed)
+        mean = {name: total / np.float32(spp) for name, total in sums.items()}
+        noisy = radiance / np.float32(spp)
+
+        if not self.settings.temporal:
+            denoiser.reset()
+        start = time.perf_counter()
+        if frame_data["samples"] is None:
+            rest = {key: value for key, value in frame_data.items() if key != "samples"}
+            denoised = np.asarray(denoiser.finish_frame(rest), dtype=np.float32)
+        else:
+            denoised = np.asarray(denoiser.denoise(frame_data), dtype=np.float32)
+        self.timings.denoise.append(streaming_seconds + time.perf_counter() - start)
+        if denoised.shape != noisy.shape:
+            raise RuntimeError(f"the denoiser returned shape {denoised.shape}, "
+                               f"expected {noisy.shape}")
+        self.last_frame = frame
+        combined_name = passes.PASS_NAMES["combined"][0]
+        alpha = mean[combined_name][..., 3:4] if combined_name in mean else np.ones_like(noisy[..., :1])
+        rgba = np.concatenate([denoised, alpha], axis=-1)
+        return DenoisedFrame(frame, rgba, noisy, mean, frame_data,
+                             dict(getattr(denoiser, "last_report", {})))
+
+    @staticmethod
+    def _geometry(captured: dict[str, np.ndarray], names: dict[str, str], camera: motion.Camera,
+                  transforms: motion.ObjectTransforms) -> motion.FrameGeometry:
+        """What motion needs of the sample at offset 0 (copies: the passes are views)."""
+        written = captured[names["aov_distance"]][..., 0] > 0.0  # our AOVs reached the hit
+        return motion.FrameGeometry(
+            camera=camera,
+            depth=captured[names["depth"]][..., 0].copy(),
+            object_key=np.where(written, captured[names["aov_object"]][..., 0], np.nan),
+            object_local=captured[names["aov_local"]][..., :3].copy(),
+            transforms=transforms,
+        )
+
+    def _sub_render(self, sample: int) -> dict[str, np.ndarray]:
+        self.scene.cycles.sample_offset = sample
+        # With persistent data Cycles silently repeats the previous sample without this.
+        self.scene.update_tag()
+
+        def read(result: Any) -> dict[str, np.ndarray]:
+            start = time.perf_counter()
+            captured = passes.read_result(result)
+            self.timings.read_passes.append(time.perf_counter() - start)
+            return captured
+
+        captured, seconds = engine.render_and_capture(read, self.scene.name, self.view_layer.name)
+        self.timings.sub_renders.append(seconds)
+        if captured is None:
+            raise Cancelled("the render was cancelled")
+        return captured
 
 
 ProgressCallback = Callable[[int, int, str], None]
@@ -162,31 +369,39 @@ class DenoiseRender:
 
     def steps(self) -> Iterator[int]:
         """Yields the number of sub-renders done so far, after each one."""
-        import bpy
-
         scene = self.scene
         problem = cycles_problem(scene)
         if problem:
             raise RuntimeError(problem)
-        denoiser = backend.create_denoiser(self.settings.model_path, self.settings.precision)
+        capture = SequenceCapture(scene, self.view_layer, self.settings, self.timings,
+                                  keep_frames=self.settings.keep_sample_frames or self.keep_frames)
         if self.settings.keep_sample_frames:
             backend.load_core(need_denoiser=False)  # the core writes frame files: fail early
-        motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())  # fail early
         self.base_folder = output.base_folder(scene, self.settings.output_folder)
         self.folder = output.choose_run_folder(
             self.base_folder, [n for f in self.frames for n in self._file_names(f)]
         )
         created = output.prepare_folder(self.folder)  # an unwritable folder fails here
-        original_frame = (scene.frame_current, scene.frame_subframe)
         try:
-            with Overrides() as overrides, passes.shader_aovs(self.view_layer), \
-                    materials.surface_aovs(bpy.data):
-                use_compositing = self._configure(overrides)
-                yield from self._render_frames(denoiser, overrides, use_compositing)
+            with capture_setup(scene, self.view_layer, self.settings.samples_per_frame) \
+                    as use_compositing:
+                spp = self.settings.samples_per_frame
+                for number, frame in enumerate(self.frames):
+                    def before_sample(sample: int, number: int = number, frame: int = frame) -> None:
+                        self.progress(number * spp + sample, self.total_steps,
+                                      f"frame {frame} ({number + 1}/{len(self.frames)}), "
+                                      f"sample {sample + 1}/{spp}")
+
+                    rendering = capture.frame(frame, before_sample)
+                    while True:
+                        try:
+                            done = next(rendering)
+                        except StopIteration as finished:
+                            denoised: DenoisedFrame = finished.value
+                            break
+                        yield number * spp + done
+                    self._finish_frame(denoised, use_compositing)
         finally:
-            engine.session.sink = None
-            engine.session.present = None
-            scene.frame_set(original_frame[0], subframe=original_frame[1])
             if not self.results:
                 output.remove_empty_folders(created)
         if self.results:
@@ -194,160 +409,12 @@ class DenoiseRender:
             compositor.update_denoised_node(scene, first.denoised_path, first.frame,
                                             len(self.results))
 
-    def _configure(self, overrides: Overrides) -> bool:
-        """Sets the scene up for one-sample sub-renders; returns the user's use_compositing."""
-        render, cycles = self.scene.render, self.scene.cycles
-        use_compositing = bool(render.use_compositing)
-        passes.enable_passes(overrides, self.view_layer)
-        overrides.set(render, "engine", engine.IDNAME)
-        overrides.set(render, "use_persistent_data", True)
-        overrides.set(render, "use_single_layer", True)
-        overrides.set(render, "use_compositing", False)
-        overrides.set(render, "use_sequencer", False)
-        overrides.set(render, "use_border", False)  # features and motion cover the whole frame
-        overrides.set(cycles, "use_denoising", False)
-        overrides.set(cycles, "use_adaptive_sampling", False)
-        if uses_sample_subsets(cycles):  # samples = the whole set, one of them per render
-            overrides.set(cycles, "samples", self.settings.samples_per_frame)
-            overrides.set(cycles, "use_sample_subset", True)
-            overrides.set(cycles, "sample_subset_length", 1)
-        else:  # render 1 sample starting at sample_offset
-            overrides.set_if_present(cycles, "use_sample_subset", False)
-            overrides.set(cycles, "samples", 1)
-        overrides.set(cycles, "sample_offset", 0)
-        # The denoise-render replaces the view layer's sample count, if it has one.
-        overrides.set_if_present(self.view_layer, "samples", 0)
-        self._activate_view_layer(overrides)
-        return use_compositing
-
-    def _activate_view_layer(self, overrides: Overrides) -> None:
+    def _finish_frame(self, denoised: DenoisedFrame, use_compositing: bool) -> None:
+        """Writes the denoised frame and presents it: Blender composites it, and the
+        composited image is saved as the frame's final file."""
         import bpy
 
-        window = bpy.context.window
-        if window is not None and window.view_layer != self.view_layer:
-            overrides.set(window, "view_layer", self.view_layer)
-
-    def _render_frames(self, denoiser: Any, overrides: Overrides,
-                       use_compositing: bool) -> Iterator[int]:
-        import bpy
-
-        scene, spp = self.scene, self.settings.samples_per_frame
-        previous: motion.FrameGeometry | None = None
-        names: dict[str, str] | None = None
-        done = 0
-        for frame_number, frame in enumerate(self.frames):
-            scene.frame_set(frame)
-            depsgraph = bpy.context.evaluated_depsgraph_get()
-            camera = motion.scene_camera(scene, depsgraph)
-            start = time.perf_counter()
-            transforms = motion.object_transforms(depsgraph)
-            self.timings.motion.append(time.perf_counter() - start)
-            ray_start = motion.ray_start_distance(camera)
-            # Streaming hands each sample to the core as it is rendered, so the frame's
-            # per-sample features are never held together (at 4K, 8 spp: 4.8 GB); the whole
-            # frame is kept only where it is written out or asked for.
-            stream = hasattr(denoiser, "add_samples") and not (
-                self.settings.keep_sample_frames or self.keep_frames)
-            if stream and denoiser.pending_samples:
-                denoiser.discard_samples()  # left by an interrupted frame
-            samples = None if stream else np.empty(
-                (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
-            radiance = np.zeros((camera.height, camera.width, 3), np.float32)
-            streaming_seconds = 0.0  # the denoiser's share of the sample loop
-            sums: dict[str, np.ndarray] = {}
-            geometry = None
-            for sample in range(spp):
-                self.progress(done, self.total_steps,
-                              f"frame {frame} ({frame_number + 1}/{len(self.frames)}), "
-                              f"sample {sample + 1}/{spp}")
-                captured = self._sub_render(sample)
-                start = time.perf_counter()
-                if names is None:
-                    names = passes.resolve(captured)
-                sample_features = features.sample_features(
-                    passes.by_role(captured, names), camera, ray_start)
-                radiance += sample_features[..., 0:3]
-                radiance += sample_features[..., 3:6]
-                self.timings.features.append(time.perf_counter() - start)
-                if samples is None:
-                    start = time.perf_counter()
-                    denoiser.add_samples(sample_features)
-                    streaming_seconds += time.perf_counter() - start
-                else:
-                    samples[:, :, sample] = sample_features
-                if sample == 0:  # Cycles writes Z for the sample at offset 0 only
-                    geometry = self._geometry(captured, names, camera, transforms)
-                for name, image in captured.items():
-                    if name in sums:
-                        sums[name] += image
-                    else:
-                        sums[name] = image.copy()
-                done += 1
-                yield done
-            assert geometry is not None
-            start = time.perf_counter()
-            motion_vectors, valid = motion.scene_motion(geometry, previous)
-            self.timings.motion.append(time.perf_counter() - start)
-            previous = geometry
-            frame_data = features.frame_dict(samples, motion_vectors, valid, camera,
-                                             scene.name, frame, scene.cycles.seed)
-            mean = {name: total / np.float32(spp) for name, total in sums.items()}
-            self._finish_frame(denoiser, frame, frame_data, radiance / np.float32(spp), mean,
-                               overrides, use_compositing, streaming_seconds)
-
-    @staticmethod
-    def _geometry(captured: dict[str, np.ndarray], names: dict[str, str], camera: motion.Camera,
-                  transforms: motion.ObjectTransforms) -> motion.FrameGeometry:
-        """What motion needs of the sample at offset 0 (copies: the passes are views)."""
-        written = captured[names["aov_distance"]][..., 0] > 0.0  # our AOVs reached the hit
-        return motion.FrameGeometry(
-            camera=camera,
-            depth=captured[names["depth"]][..., 0].copy(),
-            object_key=np.where(written, captured[names["aov_object"]][..., 0], np.nan),
-            object_local=captured[names["aov_local"]][..., :3].copy(),
-            transforms=transforms,
-        )
-
-    def _sub_render(self, sample: int) -> dict[str, np.ndarray]:
-        self.scene.cycles.sample_offset = sample
-        # With persistent data Cycles silently repeats the previous sample without this.
-        self.scene.update_tag()
-
-        def read(result: Any) -> dict[str, np.ndarray]:
-            start = time.perf_counter()
-            captured = passes.read_result(result)
-            self.timings.read_passes.append(time.perf_counter() - start)
-            return captured
-
-        captured, seconds = engine.render_and_capture(read)
-        self.timings.sub_renders.append(seconds)
-        if captured is None:
-            raise Cancelled("the render was cancelled")
-        return captured
-
-    def _finish_frame(self, denoiser: Any, frame: int, frame_data: dict[str, Any],
-                      noisy: np.ndarray, mean: dict[str, np.ndarray], overrides: Overrides,
-                      use_compositing: bool, streaming_seconds: float) -> None:
-        """Denoises the frame (its samples are in frame_data, or were streamed to the
-        denoiser when frame_data has none) and writes and presents the result."""
-        import bpy
-
-        if not self.settings.temporal:
-            denoiser.reset()
-        start = time.perf_counter()
-        if frame_data["samples"] is None:
-            rest = {key: value for key, value in frame_data.items() if key != "samples"}
-            denoised = np.asarray(denoiser.finish_frame(rest), dtype=np.float32)
-        else:
-            denoised = np.asarray(denoiser.denoise(frame_data), dtype=np.float32)
-        self.timings.denoise.append(streaming_seconds + time.perf_counter() - start)
-        if denoised.shape != noisy.shape:
-            raise RuntimeError(f"the denoiser returned shape {denoised.shape}, "
-                               f"expected {noisy.shape}")
-        combined_name = passes.PASS_NAMES["combined"][0]
-        alpha = mean[combined_name][..., 3:4] if combined_name in mean else np.ones_like(noisy[..., :1])
-        rgba = np.concatenate([denoised, alpha], axis=-1)
-
+        frame, rgba = denoised.frame, denoised.rgba
         start = time.perf_counter()
         denoised_path = os.path.join(self.folder, output.denoised_name(frame))
         output.write_float_exr(denoised_path, rgba)
@@ -355,13 +422,12 @@ class DenoiseRender:
         if self.settings.keep_sample_frames:
             sample_frame_path = os.path.join(self.folder, output.sample_frame_name(frame))
             output.write_atomic(sample_frame_path,
-                                lambda tmp: backend.write_sample_frame(tmp, frame_data))
+                                lambda tmp: backend.write_sample_frame(tmp, denoised.frame_data))
         self.timings.write.append(time.perf_counter() - start)
 
-        # Present the denoised frame: Blender composites it and we save the result.
         start = time.perf_counter()
-        engine.session.present = dict(mean)
-        engine.session.present[combined_name] = rgba
+        engine.session.present = dict(denoised.mean)
+        engine.session.present[passes.PASS_NAMES["combined"][0]] = rgba
         self.scene.render.use_compositing = use_compositing
         try:
             bpy.ops.render.render()
@@ -380,5 +446,5 @@ class DenoiseRender:
         self.timings.present.append(time.perf_counter() - start)
 
         self.results.append(FrameResult(frame, denoised_path, final_path, sample_frame_path,
-                                        noisy, denoised, dict(getattr(denoiser, "last_report", {})),
-                                        frame_data if self.keep_frames else None))
+                                        denoised.noisy, rgba[..., :3], denoised.report,
+                                        denoised.frame_data if self.keep_frames else None))
