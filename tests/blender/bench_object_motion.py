@@ -32,7 +32,6 @@ import scenes  # noqa: E402
 
 import affinity_denoiser  # noqa: E402
 from affinity_denoiser import materials, motion, passes, pipeline  # noqa: E402
-from affinity_denoiser.overrides import Overrides  # noqa: E402
 
 _MOTION_AOVS = (passes.AOV_OBJECT, passes.AOV_LOCAL)
 _MOTION_NODES = ("ShaderNodeObjectInfo", "ShaderNodeTexCoord")
@@ -57,11 +56,11 @@ def _sub_renders(width: int, height: int, spp: int, threads: int,
     object table, and for the camera-only and the object-following vectors."""
     scene = scenes.build_scene(width, height, frames=2, spp=spp, threads=threads)
     layer = scene.view_layers[0]
-    job = pipeline.DenoiseRender(scene, layer, [2], pipeline.Settings(samples_per_frame=spp))
-    with Overrides() as overrides, passes.shader_aovs(layer), materials.surface_aovs(bpy.data):
+    with pipeline.capture_setup(scene, layer, spp):
+        job = pipeline.SequenceCapture(scene, layer, pipeline.Settings(samples_per_frame=spp),
+                                       pipeline.Timings())
         if not with_motion:
             _drop_motion_aovs(layer)
-        job._configure(overrides)
         geometry = {}
         for frame in (1, 2):
             scene.frame_set(frame)

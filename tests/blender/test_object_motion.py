@@ -302,7 +302,7 @@ def test_motion_blur_keeps_object_motion(tmp_path: Any) -> None:
             captured[frame] = capture(scene, one_sample)
             names = {role: passes.PASS_NAMES[role][0]
                      for role in ("depth", "aov_distance", "aov_object", "aov_local")}
-            geometry[frame] = pipeline.DenoiseRender._geometry(
+            geometry[frame] = pipeline.SequenceCapture._geometry(
                 captured[frame], names, motion.scene_camera(scene, depsgraph),
                 motion.object_transforms(depsgraph))
     assert not captured[2]["Vector"].any()
