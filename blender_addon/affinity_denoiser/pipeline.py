@@ -63,6 +63,13 @@ def cycles_problem(scene: Any) -> str:
             f"in Render Properties")
 
 
+#: Passes Cycles writes for the sample at offset 0 only (the others hold the no-hit value):
+#: the denoised frame's copy of them is that sample's, not the samples' mean. Measured on bpy
+#: 5.0.1: Depth is 1e10 and Position 0 everywhere at offset 1.
+FIRST_SAMPLE_PASSES = frozenset({"Depth", "Z", "Position", "Object Index", "IndexOB",
+                                 "Material Index", "IndexMA"})
+
+
 class Cancelled(RuntimeError):
     """The render was cancelled (Esc, or the render job reported a break)."""
 
@@ -95,7 +102,7 @@ class DenoisedFrame:
     frame: int
     rgba: np.ndarray  # (H, W, 4): the denoised radiance, alpha the samples' mean
     noisy: np.ndarray  # (H, W, 3) mean of the samples' radiance
-    mean: dict[str, np.ndarray]  # every captured pass, averaged over the samples
+    mean: dict[str, np.ndarray]  # every captured pass: the samples' mean (FIRST_SAMPLE_PASSES: sample 0)
     frame_data: dict[str, Any]  # the core's input (its samples None when they were streamed)
     report: dict[str, Any]  # the denoiser's report of the frame
 
@@ -227,6 +234,7 @@ class SequenceCapture:
         radiance = np.zeros((camera.height, camera.width, 3), np.float32)
         streaming_seconds = 0.0  # the denoiser's share of the sample loop
         sums: dict[str, np.ndarray] = {}
+        first: dict[str, np.ndarray] = {}
         geometry = None
         for sample in range(spp):
             if before_sample is not None:
@@ -250,7 +258,10 @@ class SequenceCapture:
             if sample == 0:  # Cycles writes Z for the sample at offset 0 only
                 geometry = self._geometry(captured, names, camera, transforms)
             for name, image in captured.items():
-                if name in sums:
+                if name in FIRST_SAMPLE_PASSES:
+                    if sample == 0:
+                        first[name] = image.copy()
+                elif name in sums:
                     sums[name] += image
                 else:
                     sums[name] = image.copy()
@@ -263,6 +274,7 @@ class SequenceCapture:
         frame_data = features.frame_dict(samples, motion_vectors, valid, camera,
                                          scene.name, frame, scene.cycles.seed)
         mean = {name: total / np.float32(spp) for name, total in sums.items()}
+        mean.update(first)
         noisy = radiance / np.float32(spp)
 
         if not self.settings.temporal:

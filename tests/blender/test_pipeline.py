@@ -12,7 +12,7 @@ import pytest
 import scenes
 from conftest import CORE_IO_AVAILABLE, capture, material_snapshot
 
-from affinity_denoiser import compositor, features, pipeline
+from affinity_denoiser import compositor, features, passes, pipeline
 
 REFERENCE_SPP = 256
 
@@ -284,3 +284,27 @@ def test_precision_auto_uses_bfloat16_only_where_the_cpu_has_it(run: dict[str, A
         a, b = automatic.denoised, fp32.denoised
         assert np.isfinite(b).all()
         assert np.mean(np.abs(a - b) / (np.abs(a) + np.abs(b) + 1e-2)) < 3e-3
+
+
+def test_passes_cycles_writes_for_the_first_sample_only_are_that_samples() -> None:
+    # What the compositor gets besides Combined: Depth is written at sample offset 0 only (the
+    # other sub-renders hold 1e10, the no-hit value), so a mean would be half 1e10.
+    scene = scenes.build_scene(width=32, height=24, frames=1, spp=2)
+    layer = scene.view_layers[0]
+    layer.use_pass_z = True
+    with pipeline.capture_setup(scene, layer, 2):
+        capture = pipeline.SequenceCapture(scene, layer, pipeline.Settings(samples_per_frame=2),
+                                           pipeline.Timings())
+        rendering = capture.frame(1)
+        while True:
+            try:
+                next(rendering)
+            except StopIteration as finished:
+                denoised = finished.value
+                break
+    hit = denoised.mean[passes.AOV_DISTANCE][..., 0] > 0.0
+    depth = denoised.mean["Depth"][..., 0]
+    assert hit.mean() > 0.3
+    # Metres from the camera, or no hit at sample 0 (edge pixels): never a mix of the two.
+    assert np.all((depth < 100.0) | (depth == np.float32(1e10)))
+    assert np.mean(depth[hit] < 100.0) > 0.9
