@@ -184,6 +184,11 @@ class RenderJob:
             except (OSError, subprocess.TimeoutExpired):
                 process.kill()
                 process.wait()
+        if process is not None and process.stdin is not None and not process.stdin.closed:
+            try:
+                process.stdin.close()
+            except OSError:  # a broken pipe to a worker that is gone
+                pass
         if getattr(self, "_replies", None) is not None:
             self._replies.close()
             self._replies = None

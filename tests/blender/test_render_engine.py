@@ -18,7 +18,7 @@ import pytest
 import scenes
 from conftest import CORE_AVAILABLE, ROOT
 
-from affinity_denoiser import frame_claims, render_engine, worker
+from affinity_denoiser import frame_claims, pipeline, render_engine, render_job, worker
 
 pytestmark = pytest.mark.skipif(not CORE_AVAILABLE, reason="the engine's worker needs the core")
 
@@ -209,3 +209,26 @@ def test_a_frame_claimed_by_another_process_is_neither_rendered_nor_written(
     assert sorted(_frames(tmp_path / "engine", "frame_000[13].png")) == [1, 3]
     assert os.path.exists(claim)  # the other process's claim is its own to remove
     assert not glob.glob(os.path.join(tempfile.gettempdir(), "affinity-lost-frame-*"))
+
+
+def test_esc_kills_the_worker_and_leaves_nothing(tmp_path: Any) -> None:
+    scene = _scene(tmp_path)
+    blend = str(tmp_path / "shot.blend")
+    bpy.ops.wm.save_as_mainfile(filepath=blend)
+    job = render_job.RenderJob(blend, scene.name, scene.view_layers[0].name,
+                               render_job.JobSettings(pipeline.Settings(samples_per_frame=2), 0))
+    try:
+        first = job.render(1, ["Combined"], lambda fraction, text: None, lambda: False)
+        assert first is not None and first["Combined"].shape == (24, 32, 4)
+        calls = []
+
+        def escape_after_the_first_progress() -> bool:  # Esc while frame 2 renders
+            calls.append(1)
+            return len(calls) > 1
+
+        assert job.render(2, ["Combined"], lambda fraction, text: None,
+                          escape_after_the_first_progress) is None
+        assert job._process.poll() is not None  # the worker is gone
+        assert not os.path.exists(job.folder)
+    finally:
+        job.close()
