@@ -12,6 +12,7 @@ debian_packages=(
   clang libclang-rt-14-dev
   libtorch-dev libopenblas0-pthread libdnnl-dev ocl-icd-opencl-dev
   python3 python3-dev python3-venv
+  debootstrap
 )
 missing=()
 for p in "${debian_packages[@]}"; do
@@ -39,6 +40,9 @@ build_dir=${AFFINITY_BUILD_DIR:-build}
 cmake -S . -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release \
   -DPython_EXECUTABLE="$root/.venv/bin/python" ${AFFINITY_CMAKE_ARGS:-} >/dev/null
 cmake --build "$build_dir" -j "${AFFINITY_JOBS:-2}"
-# The core's wheel for Blender's Python in the extension, and the extension zip (skipped when
+# Python 3.13 (Blender 5.1 and later) from a Debian 13 root: the cp313 wheel's interpreter and
+# headers, and bpy 5.3 for the tests (quick when already made).
+"$root/scripts/setup_py313.sh"
+# The core's wheels for Blender's Pythons in the extension, and the extension zip (skipped when
 # nothing changed).
 "$root/scripts/build_extension.sh"

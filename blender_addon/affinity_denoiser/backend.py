@@ -56,10 +56,18 @@ def bundled_site_packages() -> str | None:
         import bpy
     except ImportError:
         return None
-    # Blender's layout for extension wheels (addon_utils, 4.2 to 5.0).
-    path = os.path.join(bpy.utils.user_resource("EXTENSIONS"), ".local", "lib",
-                        f"python{sys.version_info[0]}.{sys.version_info[1]}", "site-packages")
-    return path if os.path.isfile(os.path.join(path, "affinity_core", "__init__.py")) else None
+    # Blender puts the folder it installs extensions' wheels into on sys.path (at start-up, and
+    # when it installs an extension); its layout below the extensions folder is Blender's own.
+    roots = []
+    for resource in (bpy.utils.user_resource, bpy.utils.system_resource):
+        folder = resource("EXTENSIONS")
+        if folder:
+            roots.append(os.path.realpath(folder) + os.sep)
+    for entry in sys.path:
+        real = os.path.realpath(entry) if entry else ""
+        if real.startswith(tuple(roots)) and os.path.isfile(os.path.join(entry, "affinity_core", "__init__.py")):
+            return entry
+    return None
 
 
 @functools.cache

@@ -5,8 +5,10 @@ During a denoise-render the pipeline *presents* each denoised frame through the 
 the samples for every other pass), Blender runs the user's compositing graph on it and the result
 is saved in the scene's output format. Afterwards an Image node named ``Affinity Denoised``
 in the compositing graph points at the sequence of denoised EXR files, so the graph can be
-re-run on them later without rendering again. Blender 5 keeps the graph in
-``scene.compositing_node_group``, earlier versions in ``scene.node_tree`` (with ``use_nodes``).
+re-run on them later without rendering again. Blender 5.3 keeps the graph as the node group of
+the active entry of ``scene.compositor_effects`` (``scene.compositing_node_group``, which says
+the same, warns that it goes in Blender 6), Blender 5.0 in ``scene.compositing_node_group``,
+earlier versions in ``scene.node_tree`` (with ``use_nodes``).
 """
 
 from __future__ import annotations
@@ -19,6 +21,10 @@ NODE_NAME = "Affinity Denoised"
 
 def compositing_tree(scene: Any) -> Any:
     """The scene's compositing node tree, or None when it has none."""
+    effects = getattr(scene, "compositor_effects", None)
+    if effects is not None:
+        effect = effects.active
+        return effect.node_group if effect is not None else None
     if hasattr(scene, "compositing_node_group"):
         return scene.compositing_node_group
     if getattr(scene, "use_nodes", False):

@@ -20,17 +20,28 @@ ROUGHNESS, EMISSIVE, METALLIC, TRANSMISSIVE, SPECULAR_BOUNCE = 13, 14, 15, 16, 1
 ROUGHNESS_FLOOR = 0.02
 #: Cycles' denoising normal is in its camera space, whose Z axis points forward.
 _CYCLES_CAMERA_TO_BLENDER_CAMERA = np.diag([1.0, 1.0, -1.0])
+#: From this Blender version on Cycles measures its denoising depth from the eye; before it, from
+#: where the camera ray starts (the near plane). docs/BLENDER.md, "Blender versions".
+DENOISING_DEPTH_FROM_EYE_FROM = (5, 3, 0)
 #: The path went past its first hit when the denoising depth exceeds the hit's distance by this
 #: fraction (both are float32 sums of the same segments).
 _BOUNCE_TOLERANCE = 1e-3
+
+
+def denoising_depth_from_eye() -> bool:
+    """Whether this Blender's Cycles measures the Denoising Depth pass from the eye."""
+    import bpy
+
+    return bpy.app.version >= DENOISING_DEPTH_FROM_EYE_FROM
 
 
 def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndarray) -> np.ndarray:
     """The (H, W, 18) float32 features of one sample from its passes keyed by role.
 
     ``ray_start`` is ``motion.ray_start_distance(camera)``: Cycles measures its denoising depth
-    from the near plane, the schema from the eye. Computed channel by channel into planar
-    storage (twice as fast as working on the interleaved layout); the result is a view.
+    from the near plane before ``DENOISING_DEPTH_FROM_EYE_FROM``, the schema from the eye.
+    Computed channel by channel into planar storage (twice as fast as working on the interleaved
+    layout); the result is a view.
     """
     height, width = p["combined"].shape[:2]
     out = np.empty((FEATURE_COUNT, height, width), np.float32)
@@ -70,7 +81,10 @@ def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndar
 
     if "denoising_depth" in p:
         denoising_depth = p["denoising_depth"][..., 0]
-        path_length = np.where(denoising_depth > 0.0, denoising_depth + ray_start, 0.0)
+        start = 0.0 if denoising_depth_from_eye() else ray_start
+        # A direct miss: 0 up to 5.1, inf in 5.2, about the far clip distance in 5.3.
+        reached = (denoising_depth > 0.0) & np.isfinite(denoising_depth)
+        path_length = np.where(reached, denoising_depth + start, 0.0)
     else:  # Cycles without a denoising depth pass: the first hit's distance
         path_length = first_distance
     out[DEPTH] = np.where(miss, 0.0, path_length)

@@ -45,11 +45,28 @@ def _core_io_available() -> bool:
     return True
 
 
+def _core_path() -> str:
+    """The folder that holds the development build of the core this Python imports."""
+    module = sys.modules.get("affinity_core")
+    if module is not None and getattr(module, "__file__", None):
+        return os.path.dirname(os.path.dirname(os.path.abspath(module.__file__)))
+    return os.path.join(ROOT, "build", "python")
+
+
 CORE_PROBLEM = _core_problem()
 #: The core's Denoiser works (otherwise the pipeline tests use the stand-in).
 CORE_AVAILABLE = not CORE_PROBLEM
 #: The core can at least read and write frame files.
 CORE_IO_AVAILABLE = _core_io_available()
+#: For child processes' PYTHONPATH: build/python, or on another Python the build for it that
+#: PYTHONPATH named (scripts/test.sh: build-py313/python for bpy 5.3).
+CORE_PATH = _core_path()
+
+
+def pytest_configure(config: Any) -> None:
+    # scripts/test.sh sets it: there a run on the stand-in would test less than it says.
+    if os.environ.get("AFFINITY_REQUIRE_CORE") == "1" and not CORE_AVAILABLE:
+        raise pytest.UsageError(f"AFFINITY_REQUIRE_CORE=1 but the core is unavailable: {CORE_PROBLEM}")
 
 
 def pytest_report_header(config: Any) -> str:

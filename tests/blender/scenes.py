@@ -87,10 +87,16 @@ def build_scene(width: int = WIDTH, height: int = HEIGHT, frames: int = FRAMES,
 
 def add_exposure_compositor(scene: bpy.types.Scene, exposure: float) -> None:
     """A compositing graph: Render Layers -> Exposure (x 2^exposure) -> the output."""
-    if hasattr(scene, "compositing_node_group"):  # Blender 5: a node group of the scene
+    # Blender 5: a node group of the scene, in 5.3 that of a compositor effect (reading
+    # scene.compositing_node_group there warns that it goes in Blender 6).
+    blender5 = hasattr(scene, "compositor_effects") or hasattr(scene, "compositing_node_group")
+    if blender5:
         tree = bpy.data.node_groups.new("Compositing", "CompositorNodeTree")
         tree.interface.new_socket(name="Image", in_out="OUTPUT", socket_type="NodeSocketColor")
-        scene.compositing_node_group = tree
+        if hasattr(scene, "compositor_effects"):
+            scene.compositor_effects.new("Compositing").node_group = tree
+        else:
+            scene.compositing_node_group = tree
         result = tree.nodes.new("NodeGroupOutput")
     else:
         scene.use_nodes = True

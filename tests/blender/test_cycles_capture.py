@@ -71,7 +71,9 @@ def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[st
         assert 0.0 < metrics.smape(a, b) == pytest.approx(summary["target_half_smape"][index])
         noisy = frame["samples"][..., 0:3].mean(2) + frame["samples"][..., 3:6].mean(2)
         assert metrics.smape(noisy, a) > metrics.smape(b, a)
-        assert abs(a.mean() / b.mean() - 1) < 0.1
+        # Equal brightness up to noise: tone-mapped, so that a firefly (this interior has a small
+        # bright bulb) cannot swing the mean.
+        assert abs((a / (1 + a)).mean() / (b / (1 + b)).mean() - 1) < 0.05
 
 
 def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blender(

@@ -1,6 +1,6 @@
 """The extension package: Blender's own validator and builder accept it, it bundles the core's
-wheel (built by scripts/build_extension.sh), and that wheel works on its own and inside an
-installed extension."""
+wheels for CPython 3.11 and 3.13 (built by scripts/build_extension.sh), and the one for this
+Python works on its own and inside an installed extension."""
 
 from __future__ import annotations
 
@@ -14,8 +14,9 @@ import zipfile
 from typing import Any
 
 import bpy
+import numpy as np
 import pytest
-from conftest import ROOT
+from conftest import CORE_PATH, ROOT
 
 from affinity_denoiser import backend
 
@@ -28,13 +29,27 @@ def _manifest() -> dict[str, Any]:
         return tomllib.load(handle)
 
 
+#: The Pythons of the Blenders the extension supports: 3.11 (4.2 to 5.0), 3.13 (5.1 and later).
+PYTHON_TAGS = ("cp311", "cp313")
+#: This interpreter's tag: Blender installs the wheel with it.
+THIS_PYTHON = f"cp{sys.version_info[0]}{sys.version_info[1]}"
+
+
+def _bundled_wheels() -> dict[str, str]:
+    """The wheels the manifest lists, by Python tag; each must exist."""
+    paths = {}
+    for wheel in _manifest().get("wheels", []):
+        path = os.path.normpath(os.path.join(PACKAGE, wheel))
+        assert os.path.isfile(path), f"{path} is missing: run scripts/build_extension.sh"
+        paths[os.path.basename(path).split("-")[2]] = path
+    return paths
+
+
 def _bundled_wheel() -> str:
-    """The path of the one wheel the manifest lists; it must exist."""
-    wheels = _manifest().get("wheels", [])
-    assert len(wheels) == 1, f"the manifest should list one wheel, not {wheels}"
-    path = os.path.normpath(os.path.join(PACKAGE, wheels[0]))
-    assert os.path.isfile(path), f"{path} is missing: run scripts/build_extension.sh"
-    return path
+    """The listed wheel for this Python."""
+    wheels = _bundled_wheels()
+    assert THIS_PYTHON in wheels, f"no wheel for {THIS_PYTHON} in {sorted(wheels.values())}"
+    return wheels[THIS_PYTHON]
 
 
 def _cmake_project_version() -> str:
@@ -82,31 +97,41 @@ def _build_archive(output_dir: Any) -> str:
     return archive
 
 
-def test_blender_builds_a_valid_archive_with_the_wheel(tmp_path: Any) -> None:
+def test_blender_builds_a_valid_archive_with_the_wheels(tmp_path: Any) -> None:
     archive = _build_archive(tmp_path)
     result = _run("validate", archive)
     assert result.returncode == 0, result.stdout + result.stderr
-    wheel = _bundled_wheel()
-    with zipfile.ZipFile(archive) as packed, open(wheel, "rb") as handle:
-        assert packed.read("wheels/" + os.path.basename(wheel)) == handle.read()
-        assert [n for n in packed.namelist() if n.startswith("wheels/")] == [
-            "wheels/" + os.path.basename(wheel)]
+    wheels = sorted(_bundled_wheels().values())
+    with zipfile.ZipFile(archive) as packed:
+        assert sorted(n for n in packed.namelist() if n.startswith("wheels/")) == [
+            "wheels/" + os.path.basename(w) for w in wheels]
+        for wheel in wheels:
+            with open(wheel, "rb") as handle:
+                assert packed.read("wheels/" + os.path.basename(wheel)) == handle.read()
 
 
-def test_manifest_lists_exactly_the_built_wheel() -> None:
+def test_manifest_lists_exactly_the_built_wheels() -> None:
     manifest = _manifest()
-    name = os.path.basename(_bundled_wheel())
-    assert manifest["wheels"] == [f"./wheels/{name}"]
-    # Blender installs every wheel listed; the builder packs every file in the folder.
-    assert os.listdir(os.path.join(PACKAGE, "wheels")) == [name]
-    # For Blender's CPython 3.11 on Linux x86-64, versioned like the CMake project.
-    assert re.fullmatch(rf"affinity_core-{re.escape(_cmake_project_version())}-cp311-cp311-"
-                        r"manylinux_2_\d+_x86_64\.whl", name), name
+    wheels = _bundled_wheels()
+    names = [os.path.basename(wheels[tag]) for tag in PYTHON_TAGS if tag in wheels]
+    assert manifest["wheels"] == [f"./wheels/{name}" for name in names]
+    # Blender installs the listed wheel matching its Python; the builder packs every file in
+    # the folder.
+    assert sorted(os.listdir(os.path.join(PACKAGE, "wheels"))) == sorted(names)
+    # One per Blender Python on Linux x86-64, versioned like the CMake project, and both for
+    # glibc 2.34 (the cp313 one built by the same host toolchain, not Debian 13's).
+    assert sorted(wheels) == sorted(PYTHON_TAGS), names
+    for tag, name in zip(PYTHON_TAGS, names):
+        assert re.fullmatch(rf"affinity_core-{re.escape(_cmake_project_version())}-{tag}-{tag}-"
+                            r"manylinux_2_34_x86_64\.whl", name), name
     assert manifest["platforms"] == ["linux-x64"]
 
 
-def test_wheel_holds_the_package_and_the_libraries_it_needs() -> None:
-    with zipfile.ZipFile(_bundled_wheel()) as wheel:
+@pytest.mark.parametrize("tag", PYTHON_TAGS)
+def test_wheel_holds_the_package_and_the_libraries_it_needs(tag: str) -> None:
+    wheels = _bundled_wheels()
+    assert tag in wheels, sorted(wheels.values())
+    with zipfile.ZipFile(wheels[tag]) as wheel:
         names = wheel.namelist()
     # Every Python file of the package, as python_bindings/CMakeLists.txt installs them.
     source = os.path.join(ROOT, "python_bindings")
@@ -119,7 +144,7 @@ def test_wheel_holds_the_package_and_the_libraries_it_needs() -> None:
     # The benchmark is a development tool of the repository (affinity_bench/), never shipped.
     assert not [n for n in names if n.startswith(("affinity_core/bench/", "affinity_bench/"))], names
     assert [n for n in names if n.startswith("affinity_core/_core")] == [
-        "affinity_core/_core.cpython-311-x86_64-linux-gnu.so"]
+        f"affinity_core/_core.cpython-{tag.removeprefix('cp')}-x86_64-linux-gnu.so"]
     # auditwheel copied in what a Blender machine may not have (OpenEXR, Imath, libgomp).
     vendored = [n.removeprefix("affinity_core.libs/") for n in names if n.startswith("affinity_core.libs/")]
     for library in ("libOpenEXR-", "libImath-", "libgomp-"):
@@ -181,8 +206,9 @@ def test_the_wheel_alone_reads_writes_and_denoises(tmp_path: Any) -> None:
     report = json.loads(result.stdout.strip().splitlines()[-1])
     assert report["affinity"] == str(site / "affinity_core" / "__init__.py")
     assert report["version"] == _cmake_project_version()  # from the wheel's metadata
-    assert report["core"].startswith(str(site / "affinity_core" / "_core.cpython-311-"))
-    assert report["numpy"].startswith("1.26.")  # bpy's numpy; the main venv has numpy 2
+    assert report["core"].startswith(str(site / "affinity_core" / f"_core.cpython-{THIS_PYTHON[2:]}-"))
+    # bpy's numpy (1.26 with Blender 5.0, 2.2 with 5.3); the module was built with numpy 2.
+    assert report["numpy"] == np.__version__
     assert report["same_samples"]
     assert report["shapes"] == [[12, 16, 3], [12, 16, 3]]
     assert report["dtypes"] == ["float32", "float32"]
@@ -210,8 +236,13 @@ scene.affinity_denoiser.samples_per_frame = 2
 scene.frame_set(1)
 assert bpy.ops.affinity_denoiser.render_frame() == {"FINISHED"}
 image = scenes.read_image(os.path.join(out, "affinity_denoised", "denoised_0001.exr"))
+core = sys.modules["affinity_core"]
+backend = sys.modules["bl_ext.user_default.affinity_denoiser.backend"]
 print("RESULT " + json.dumps({
-    "affinity": sys.modules["affinity_core"].__file__,
+    "affinity": core.__file__,
+    "core": core._core.__file__,
+    "site": backend.bundled_site_packages(),
+    "extensions": bpy.utils.user_resource("EXTENSIONS"),
     "addons": sorted(m for m in sys.modules if m.endswith(".affinity_denoiser")),
     "shape": list(image.shape),
     "finite": bool(np.isfinite(image).all()),
@@ -224,15 +255,21 @@ def test_installed_extension_denoises_with_its_bundled_core(tmp_path: Any) -> No
     env = dict(os.environ)
     env["BLENDER_USER_RESOURCES"] = str(tmp_path / "blender")
     # A development build of the core is on the path too: the bundled wheel must win.
-    env["PYTHONPATH"] = os.pathsep.join([os.path.join(ROOT, "build", "python"), TESTS])
+    env["PYTHONPATH"] = os.pathsep.join([CORE_PATH, TESTS])
     result = subprocess.run([sys.executable, "-c", _INSTALLED_EXTENSION, archive,
                              str(tmp_path / "render")], env=env, cwd=str(tmp_path),
                             capture_output=True, text=True, timeout=300)
     lines = [line for line in result.stdout.splitlines() if line.startswith("RESULT ")]
     assert result.returncode == 0 and lines, result.stdout[-3000:] + result.stderr[-3000:]
     report = json.loads(lines[-1].removeprefix("RESULT "))
-    site = tmp_path / "blender" / "extensions" / ".local" / "lib" / "python3.11" / "site-packages"
-    assert report["affinity"] == str(site / "affinity_core" / "__init__.py")
+    # Blender installed this Python's wheel below its user extensions folder, and the add-on
+    # found it there (from sys.path, whatever Blender's layout) and preferred it.
+    extensions = str(tmp_path / "blender" / "extensions")
+    assert report["extensions"].rstrip(os.sep) == extensions
+    site = report["site"]
+    assert site and site.startswith(extensions + os.sep), report
+    assert report["affinity"] == os.path.join(site, "affinity_core", "__init__.py")
+    assert os.path.basename(report["core"]).startswith(f"_core.cpython-{THIS_PYTHON[2:]}-")
     assert report["addons"] == ["bl_ext.user_default.affinity_denoiser"]
     assert report["shape"] == [24, 32, 4] and report["finite"]
 

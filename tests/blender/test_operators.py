@@ -11,7 +11,7 @@ from typing import Any
 import bpy
 import pytest
 import scenes
-from conftest import CORE_AVAILABLE, ROOT
+from conftest import CORE_AVAILABLE, CORE_PATH, ROOT
 
 from affinity_denoiser import backend, operators
 
@@ -283,7 +283,7 @@ def test_no_console_noise_and_plain_cycles_renders_are_unchanged(tmp_path: Any) 
     took Cycles' Python class off its RNA type, so every call into the Cycles engine failed
     while the add-on was registered (and after): plain Cycles renders came out black."""
     env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([os.path.join(ROOT, "build", "python"),
+    env["PYTHONPATH"] = os.pathsep.join([CORE_PATH,
                                          os.path.join(ROOT, "blender_addon"),
                                          os.path.dirname(os.path.abspath(__file__))])
     result = subprocess.run([sys.executable, "-c", _CONSOLE, str(tmp_path)], env=env,

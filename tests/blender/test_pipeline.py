@@ -255,8 +255,11 @@ def test_streamed_samples_give_what_the_core_gives_on_the_kept_frames(run: dict[
         expected = by_hand.finish_frame({k: v for k, v in kept.frame_data.items() if k != "samples"})
         np.testing.assert_array_equal(streamed.denoised, expected)
         np.testing.assert_allclose(streamed.noisy, kept.noisy, rtol=1e-5, atol=1e-7)
-        # Only the depth normalisation separates it from denoising the whole frame.
-        assert np.abs(streamed.denoised - kept.denoised).max() <= 0.02 * np.abs(kept.denoised).max()
+        # Only the depth normalisation separates it from denoising the whole frame: little on
+        # average, most beside the emitter (one pixel's difference varies with the Blender version).
+        difference = np.abs(streamed.denoised - kept.denoised)
+        assert difference.mean() <= 0.01 * np.abs(kept.denoised).mean()
+        assert difference.max() <= 0.03 * np.abs(kept.denoised).max()
 
 
 def test_precision_auto_uses_bfloat16_only_where_the_cpu_has_it(run: dict[str, Any], tmp_path: Any) -> None:
