@@ -2,7 +2,7 @@
 # One command for a full training (docs/TRAINING.md): renders the data cache if needed, trains,
 # plots the loss curves, exports the best weights and evaluates them with the benchmark's renderer
 # suite (docs/BENCHMARK.md) beside the built-in model, OpenImageDenoise and the noisy input.
-#   scripts/train.sh [extra affinity_train options for both stages, e.g. --albedo-demodulation]
+#   scripts/train.sh [extra affinity_train options for both stages, e.g. --crop 96]
 # The defaults are the shipped default model's recipe from scratch on the CPU (docs/TRAINING.md,
 # "One command in two stages"): preset small; 220 procedural and 40 "sparks" sequences rendered
 # at 16 spp with 256-spp targets and 8 validation sequences (18-22 minutes on 2 cores); crops

@@ -126,20 +126,18 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
                     (frame.valid.defined() ? shapeText(frame.valid) : std::string("nothing")));
     }
     const torch::Tensor motion = frame.motion.to(options);
-    const std::vector<std::int64_t> signalShape{batch, config_.signalChannels(), height, width};
+    const std::vector<std::int64_t> signalShape{batch, ModelConfig::kSignalChannels, height, width};
     const bool history = !state.empty() && state.output.sizes() == signalShape;
 
     FrameResult result;
     // Sections 1-2: sanitised inputs, per-sample embedding averaged per pixel.
     // A sequence keeps the exposure of its first frame (the core does the same).
-    PreparedInputs prepared = prepareInputs(samples, config_.emissionBypass, history ? state.exposure : torch::Tensor());
+    PreparedInputs prepared = prepareInputs(samples, history ? state.exposure : torch::Tensor());
     result.noisy = prepared.radiance;
     result.invalidCount = prepared.invalidCount;
     result.embedding = embed(prepared.networkInput);
-    // What the moving average accumulates: the filtered signal, and the albedo (so that the albedo
-    // multiplied back is as steady as the light it multiplies) and bypassed emission if any.
-    const torch::Tensor current =
-        accumulatedSignal(prepared, config_.albedoDemodulation, config_.emissionBypass);
+    // What the moving average accumulates and the kernels filter: the noisy radiance.
+    const torch::Tensor& current = prepared.radiance;
 
     // Section 3: histories (warped state where valid, the current frame elsewhere).
     torch::Tensor validMask = torch::zeros(validShape, options);
@@ -169,8 +167,7 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     result.accumulated = (1 - lambda) * current + lambda * historySignal;
 
     // Section 6: dilated kernels 0..K-2; section 7: the last one, with temporal taps.
-    const std::int64_t C = config_.signalChannels();
-    torch::Tensor filtered = result.accumulated.narrow(1, 0, C);
+    torch::Tensor filtered = result.accumulated;
     for (int k = 0; k + 1 < K; ++k) {
         filtered = affinityFilter(filtered, result.kernels[std::size_t(k)], config_.kernelSize, 1 << k);
     }
@@ -182,9 +179,7 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     } else {
         filtered = affinityFilter(filtered, last, config_.kernelSize, 1 << (K - 1));
     }
-    const std::int64_t unfiltered = result.accumulated.size(1) - C;
-    result.output = radianceFromSignal(filtered, unfiltered > 0 ? result.accumulated.narrow(1, C, unfiltered) : torch::Tensor(),
-                                       config_.albedoDemodulation, config_.emissionBypass);
+    result.output = filtered;
 
     state = {accumulatedEmbedding, result.accumulated, filtered, last.features, prepared.exposure};
     return result;

@@ -54,8 +54,8 @@ struct FrameInput {
 // What a frame leaves for the next one (sections 3 and 7); undefined tensors = no history.
 struct RecurrentState {
     torch::Tensor embedding;  // ē_t [B, E, H, W]
-    torch::Tensor radiance;   // L̄_t [B, C, H, W], in the filtered signal's C channels
-    torch::Tensor output;     // the last kernel's output [B, C, H, W], before remodulation
+    torch::Tensor radiance;   // L̄_t [B, 3, H, W]
+    torch::Tensor output;     // the last kernel's output O_t [B, 3, H, W]
     torch::Tensor features;   // f^{K-1}_t [B, F, H, W]
     torch::Tensor exposure;   // [B]: the sequence's exposure normalisation (prepareInputs), 0 while black
     bool empty() const { return !output.defined(); }
@@ -68,7 +68,7 @@ struct FrameResult {
     torch::Tensor output;              // O_t [B, 3, H, W]
     torch::Tensor noisy;               // L_t [B, 3, H, W]
     torch::Tensor embedding;           // e_t [B, E, H, W]
-    torch::Tensor accumulated;         // L̄_t [B, C, H, W]
+    torch::Tensor accumulated;         // L̄_t [B, 3, H, W]
     torch::Tensor head;                // U-Net output [B, P, H, W]
     torch::Tensor lambda;              // [B, 1, H, W]
     torch::Tensor temporalBandwidth;   // b [B, 1, H, W]

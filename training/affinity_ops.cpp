@@ -98,7 +98,7 @@ at::Tensor exposureOf(const at::Tensor& cleanRadiance) {
     return at::where(found, factor, 0.0);  // exposureForKey (features.h)
 }
 
-PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass, const at::Tensor& sequenceExposure) {
+PreparedInputs prepareInputs(const at::Tensor& samples, const at::Tensor& sequenceExposure) {
     if (samples.dim() != 5 || samples.size(2) != kFeatureCount) {
         throw Error("prepareInputs: samples must be [B, S, 18, H, W]");
     }
@@ -111,8 +111,6 @@ PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass, con
     const at::Tensor clean = at::where(finite.logical_and(radiance > 0), radiance, 0.0);
     const at::Tensor invalidCount = finite.logical_not().logical_or(radiance < 0).sum(perFrame);
     const at::Tensor noisy = (clean.narrow(2, 0, 3) + clean.narrow(2, 3, 3)).mean(1);
-    const at::Tensor rawAlbedo = samples.narrow(2, channel::kAlbedo, 3);
-    const at::Tensor albedo = at::where(at::isfinite(rawAlbedo).logical_and(rawAlbedo > 0), rawAlbedo, 0.0).mean(1);
 
     // Every other feature: non-finite values read as 0 (the core does the same).
     auto finiteOrZero = [](const at::Tensor& values) { return at::where(at::isfinite(values), values, 0.0); };
@@ -144,44 +142,7 @@ PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass, con
         at::cat({at::log1p(exposed), finiteOrZero(samples.narrow(2, channel::kNormal, 3)), depth * scale,
                  finiteOrZero(samples.narrow(2, channel::kAlbedo, kFeatureCount - channel::kAlbedo))},
                 2);
-    PreparedInputs prepared{networkInput, noisy, {}, {}, {}, albedo, invalidCount, exposure};
-    if (emissionBypass) {
-        // An emitter or the sky seen directly; through a mirror or glass the path's choices make
-        // it as noisy as any other light.
-        const at::Tensor emissive = (finiteOrZero(samples.narrow(2, channel::kEmissive, 1)) > 0.5)
-                                        .logical_and(finiteOrZero(samples.narrow(2, channel::kSpecularBounce, 1)) <= 0.5);
-        const at::Tensor filtered = at::where(emissive, 0.0, clean), bypassed = at::where(emissive, clean, 0.0);
-        prepared.diffuse = filtered.narrow(2, 0, 3).mean(1);
-        prepared.specular = filtered.narrow(2, 3, 3).mean(1);
-        prepared.emitted = (bypassed.narrow(2, 0, 3) + bypassed.narrow(2, 3, 3)).mean(1);
-    } else {
-        prepared.diffuse = clean.narrow(2, 0, 3).mean(1);
-        prepared.specular = clean.narrow(2, 3, 3).mean(1);
-    }
-    return prepared;
-}
-
-at::Tensor accumulatedSignal(const PreparedInputs& prepared, bool albedoDemodulation, bool emissionBypass) {
-    std::vector<at::Tensor> parts;
-    if (albedoDemodulation) {
-        parts = {prepared.diffuse / prepared.albedo.clamp_min(kDemodulationFloor), prepared.specular, prepared.albedo};
-    } else {
-        parts = {emissionBypass ? prepared.diffuse + prepared.specular : prepared.radiance};
-    }
-    if (emissionBypass) parts.push_back(prepared.emitted);
-    return parts.size() == 1 ? parts[0] : at::cat(parts, 1);
-}
-
-at::Tensor radianceFromSignal(const at::Tensor& filtered, const at::Tensor& unfiltered, bool albedoDemodulation,
-                              bool emissionBypass) {
-    checkImage(filtered, "the filtered signal", albedoDemodulation ? 6 : 3);
-    at::Tensor radiance = filtered;
-    if (albedoDemodulation) {
-        radiance = unfiltered.narrow(1, 0, 3).clamp_min(kDemodulationFloor) * filtered.narrow(1, 0, 3) +
-                   filtered.narrow(1, 3, 3);
-    }
-    if (emissionBypass) radiance = radiance + unfiltered.narrow(1, albedoDemodulation ? 3 : 0, 3);
-    return radiance;
+    return {networkInput, noisy, invalidCount, exposure};
 }
 
 WarpTargets warpTargets(const at::Tensor& motion) {

@@ -10,37 +10,17 @@ namespace affinity::train {
 struct PreparedInputs {
     at::Tensor networkInput;    // [B, S, 18, H, W]
     at::Tensor radiance;        // [B, 3, H, W]: mean over samples of the sanitised radiance
-    // With emission bypass, the samples of direct emission (flagged emissive and not
-    // specular_bounce: an emitter or the sky seen directly) are not filtered: diffuse and specular are then the means of the other
-    // samples' parts (0 for the emissive ones), emitted the mean of the emissive ones' radiance.
-    at::Tensor diffuse;         // [B, 3, H, W]
-    at::Tensor specular;        // [B, 3, H, W]
-    at::Tensor emitted;         // [B, 3, H, W] with emission bypass, undefined without
-    at::Tensor albedo;          // [B, 3, H, W]: mean albedo (non-finite or negative read as 0)
     at::Tensor invalidCount;    // [B] int64: radiance values that were non-finite or negative
     at::Tensor exposure;        // [B]: the exposure the radiance was scaled by (0: black, scaled by 1)
 };
 // samples: [B, S, 18, H, W] raw features. depthScale is computed per batch element (frame), the
 // exposure normalisation too unless `exposure` ([B], a sequence's) is given; where that is 0 (the
 // sequence's frames so far black) it is computed from this frame.
-PreparedInputs prepareInputs(const at::Tensor& samples, bool emissionBypass = false,
-                             const at::Tensor& exposure = at::Tensor());
+PreparedInputs prepareInputs(const at::Tensor& samples, const at::Tensor& exposure = at::Tensor());
 // The core's exposureOf (core/src/pipeline/exposure.h) per batch element of sanitised radiance
 // [B, S, 6, H, W] (diffuse then specular, non-finite and negative values already 0): [B] in double.
 at::Tensor exposureOf(const at::Tensor& cleanRadiance);
 
-// Albedo below this divides (and multiplies) as this: the quotient stays bounded (the core's
-// kDemodulationFloor in core/src/network/filter_signal.h says why 0.1).
-inline constexpr double kDemodulationFloor = 0.1;
-// What the moving average accumulates (docs/MODEL.md section 1), [B, C + extra, H, W]: first the
-// C channels the kernels filter (the radiance, or with albedo demodulation the diffuse radiance
-// over max(albedo, floor) and the specular radiance), then the albedo (demodulation) and the
-// emitted radiance (emission bypass), which are accumulated but not filtered.
-at::Tensor accumulatedSignal(const PreparedInputs& prepared, bool albedoDemodulation, bool emissionBypass);
-// Radiance [B, 3, H, W] from the filtered part [B, C, H, W] and the unfiltered rest of an
-// accumulated signal (albedo and/or emitted radiance; undefined when there is none).
-at::Tensor radianceFromSignal(const at::Tensor& filtered, const at::Tensor& unfiltered, bool albedoDemodulation,
-                              bool emissionBypass);
 
 // out(p) = bilinear lookup of `previous` at (x + motion_x, y + motion_y), pixel centres at
 // integer coordinates, taps outside the image clamped to the border. motion: [B, 2, H, W]

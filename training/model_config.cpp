@@ -88,15 +88,7 @@ void validateConfig(const ModelConfig& config) {
 
 std::vector<std::string> presetNames() { return {"tiny", "small", "medium", "paper"}; }
 
-bool ModelOptions::parseFlag(const std::string& flag) {
-    bool* option = flag == "--albedo-demodulation" ? &albedoDemodulation
-                   : flag == "--emission-bypass"   ? &emissionBypass
-                                                   : nullptr;
-    if (option) *option = true;
-    return option != nullptr;
-}
-
-ModelConfig presetConfig(const std::string& name, const ModelOptions& options) {
+ModelConfig presetConfig(const std::string& name) {
     ModelConfig config;
     if (name == "tiny") {
         config.embedWidths = {16, 16};
@@ -127,7 +119,6 @@ ModelConfig presetConfig(const std::string& name, const ModelOptions& options) {
         for (const std::string& preset : presetNames()) known += (known.empty() ? "" : ", ") + preset;
         throw Error("unknown model preset '" + name + "' (known: " + known + ")");
     }
-    static_cast<ModelOptions&>(config) = options;
     return config;
 }
 
@@ -182,15 +173,15 @@ ModelConfig configFromWeights(const Weights& weights) {
             throw Error(source + ": " + name + " is " + str(value) + ", expected 0 or 1");
         return value == 1;
     };
-    config.albedoDemodulation = flag("config.albedo_demodulation");
-    config.emissionBypass = flag("config.emission_bypass");
     // Switches of variants that lost and were removed (docs/TRAINING.md, "Tried and lost"): a file
     // that turns one on is refused rather than trained or exported as a different model.
     for (const auto& [name, what] : {std::pair<const char*, const char*>{"config.source_weights", "source weights"},
-                                     {"config.emission_lambda", "separate emission lambdas"}})
+                                     {"config.emission_lambda", "a separate emission lambda"},
+                                     {"config.albedo_demodulation", "albedo demodulation"},
+                                     {"config.emission_bypass", "emission bypass"}})
         if (flag(name))
-            throw Error(source + ": " + name + " = 1: " + what +
-                        " were removed (no shipped model used them); this version cannot load the model");
+            throw Error(source + ": " + name + " = 1: the option " + what +
+                        " was removed (no shipped model used it); this version cannot load the model");
 
     for (int i = 0;; ++i) {
         const std::string name = "embed." + str(i) + ".weight";
@@ -270,17 +261,14 @@ FlopCount flopCount(const ModelConfig& config) {
 
     // A neighbour tap: F differences, squares and sums, the bandwidth product, an exp, a
     // weighted multiply-add per filtered channel and the denominator.
-    const int C = config.signalChannels();
+    const int C = ModelConfig::kSignalChannels;
     const double tap = 3.0 * config.affinityFeatures + 4.0 + 2.0 * C;
     const double taps = double(config.kernelSize) * config.kernelSize - 1.0;
     flops.filterPerPixel = config.kernels * (taps * tap + 7.0 + 4.0) + 9.0 * tap;
-    // Bilinear warps (8 per channel) of the embedding, radiance, output and features, the
-    // two moving averages (3 per channel), and demodulating and remodulating (2 per channel).
+    // Bilinear warps (8 per channel) of the embedding, radiance, output and features, and the
+    // two moving averages (3 per channel).
     const int E = config.embeddingChannels();
-    const int A = config.accumulatedChannels();
-    flops.filterPerPixel += 8.0 * (E + A + C + config.affinityFeatures) + 3.0 * (E + A);
-    if (config.albedoDemodulation) flops.filterPerPixel += 2.0 * 6.0;
-    if (config.emissionBypass) flops.filterPerPixel += 3.0;
+    flops.filterPerPixel += 8.0 * (E + 2 * C + config.affinityFeatures) + 3.0 * (E + C);
     return flops;
 }
 

@@ -17,24 +17,8 @@ struct ConvStackSpec {
     int outWidth() const { return widths.empty() ? 0 : widths.back(); }
 };
 
-// The switches of a model that every preset leaves off, as a command line chooses them. No
-// shipped model uses either; they stay because Cycles fine-tunes with both are being trained
-// (core/models/small_demod_bypass.affw, docs/TRAINING.md).
-struct ModelOptions {
-    // Filter diffuse radiance divided by albedo (and specular as it is), then multiply the
-    // albedo back (docs/MODEL.md section 6): texture detail need not survive the kernels.
-    bool albedoDemodulation = false;
-    // Samples flagged emissive (emitters and the sky, seen directly or through mirrors) bypass the
-    // kernels: their radiance is accumulated but not filtered, and added back (docs/MODEL.md
-    // section 1), so a light smaller than a pixel is not spread onto its neighbours.
-    bool emissionBypass = false;
-    // Sets the switch that `flag` names (--albedo-demodulation, --emission-bypass); false for any
-    // other flag.
-    bool parseFlag(const std::string& flag);
-};
-
-// A model's sizes and its switches.
-struct ModelConfig : ModelOptions {
+// A model's sizes.
+struct ModelConfig {
     std::vector<int> embedWidths;         // output width of each embedding layer; the last is E
     std::vector<ConvStackSpec> encoder;   // level 0 (full resolution) first
     ConvStackSpec bottleneck;
@@ -44,12 +28,8 @@ struct ModelConfig : ModelOptions {
     int kernelSize = 5;         // T: spatial taps per side (odd)
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
-    // Channels the kernels filter: RGB radiance, or demodulated diffuse RGB + specular RGB.
-    int signalChannels() const { return albedoDemodulation ? 6 : 3; }
-    // What the moving average accumulates: the filtered channels, the albedo, bypassed emission.
-    int accumulatedChannels() const {
-        return signalChannels() + (albedoDemodulation ? 3 : 0) + (emissionBypass ? 3 : 0);
-    }
+    // Channels the moving average accumulates and the kernels filter: RGB radiance.
+    static constexpr int kSignalChannels = 3;
     // Head channels per kernel: features, bandwidth, centre weight.
     int kernelChannels() const { return affinityFeatures + 2; }
     // P = K kernelChannels() + 2: the kernels' parameters; temporal bandwidth, lambda.
@@ -64,12 +44,12 @@ void validateConfig(const ModelConfig& config);
 // kept because scripts/bench_denoiser.sh times it as the ladder's paper-sized point).
 std::vector<std::string> presetNames();
 // Throws affinity::Error for unknown names.
-ModelConfig presetConfig(const std::string& name, const ModelOptions& options = {});
+ModelConfig presetConfig(const std::string& name);
 
 // Reads the structure back from a weights file's tensors (docs/MODEL.md sections 4 and 8) and
 // checks every shape against it; throws affinity::Error naming the source and the tensor, or the
 // switch of a removed variant that the file turns on (config.source_weights,
-// config.emission_lambda).
+// config.emission_lambda, config.albedo_demodulation, config.emission_bypass).
 ModelConfig configFromWeights(const Weights& weights);
 
 // The float tensors of a model as docs/MODEL.md names them, with their shapes, in the order

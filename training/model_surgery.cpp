@@ -90,8 +90,6 @@ void checkWidenable(const ModelConfig& trained, const ModelConfig& wide, const s
     if (trained.kernels != wide.kernels || trained.affinityFeatures != wide.affinityFeatures ||
         trained.kernelSize != wide.kernelSize)
         fail("the kernel settings (K, F, T) differ");
-    if (trained.albedoDemodulation != wide.albedoDemodulation || trained.emissionBypass != wide.emissionBypass)
-        fail("the model options differ");
     if (trained.encoder.size() != wide.encoder.size()) fail("the U-Net level counts differ");
     auto sameDepth = [&](const ConvStackSpec& a, const ConvStackSpec& b, const std::string& name) {
         if (a.widths.size() != b.widths.size()) fail(name + " has a different number of convolutions");

@@ -1,8 +1,7 @@
 // affinity_model_tool: creates randomly initialised weights files, describes weights files and
 // widens a trained model to a larger preset (to fine-tune it from there, as the shipped medium
 // model was made).
-//   affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]
-//       [--emission-bypass]
+//   affinity_model_tool init --preset NAME --seed N --out FILE.affw
 //   affinity_model_tool describe FILE.affw
 //   affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw
 #include <cstdint>
@@ -21,8 +20,7 @@ namespace affinity::train {
 namespace {
 
 constexpr const char* kUsage =
-    "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw [--albedo-demodulation]\n"
-    "           [--emission-bypass]   (the model options of docs/MODEL.md)\n"
+    "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw\n"
     "       affinity_model_tool describe FILE.affw\n"
     "       affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw   (same function, the preset's wider\n"
     "           layers; the new channels' incoming weights initialised with seed N)\n";
@@ -50,10 +48,8 @@ std::uint64_t nonNegativeInteger(const std::string& what, const std::string& val
 int runInit(const std::vector<std::string>& args) {
     std::string preset = "small", out;
     std::uint64_t seed = 0;
-    ModelOptions options;
     for (std::size_t i = 0; i < args.size(); ++i) {
         const std::string& flag = args[i];
-        if (options.parseFlag(flag)) continue;
         if (i + 1 >= args.size()) throw Error("init: " + flag + " needs a value");
         const std::string& value = args[++i];
         if (flag == "--preset") {
@@ -67,7 +63,7 @@ int runInit(const std::vector<std::string>& args) {
         }
     }
     if (out.empty()) throw Error("init: --out FILE is required");
-    const ModelConfig config = presetConfig(preset, options);
+    const ModelConfig config = presetConfig(preset);
     writeInitialModel(config, seed, out);
     std::cout << "wrote " << out << ": preset " << preset << ", seed " << seed << ", "
               << parameterCount(config) << " parameters\n";
@@ -88,9 +84,6 @@ int runDescribe(const std::vector<std::string>& args) {
     std::cout << "  bottleneck     " << joined(config.bottleneck.widths) << "\n";
     std::cout << "  kernels        K = " << config.kernels << ", F = " << config.affinityFeatures
               << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
-    std::cout << "  filters        "
-              << (config.albedoDemodulation ? "diffuse / albedo and specular (albedo demodulation)" : "radiance")
-              << (config.emissionBypass ? ", emissive samples bypass the kernels" : "") << "\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];
@@ -127,7 +120,7 @@ int runWiden(const std::vector<std::string>& args) {
     if (files[0] == files[1]) throw Error("widen: the output must not overwrite the input");
     const Weights trained = Weights::fromFile(files[0]);
     const std::string freshPath = files[1] + ".fresh.tmp";
-    writeInitialModel(presetConfig(preset, configFromWeights(trained)), seed, freshPath);
+    writeInitialModel(presetConfig(preset), seed, freshPath);
     std::vector<NamedTensor> tensors;
     try {
         tensors = widened(trained, Weights::fromFile(freshPath));

@@ -26,8 +26,6 @@ std::vector<NamedTensor> modelTensors(const AffinityModel& model) {
     integer("config.kernels", config.kernels);
     integer("config.affinity_features", config.affinityFeatures);
     integer("config.kernel_size", config.kernelSize);
-    if (config.albedoDemodulation) integer("config.albedo_demodulation", 1);
-    if (config.emissionBypass) integer("config.emission_bypass", 1);
     return tensors;
 }
 

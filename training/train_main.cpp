@@ -20,8 +20,6 @@ constexpr const char* kUsage =
     "  --out DIR           loss.csv, checkpoint.affw, optimizer.pt, state.txt, best.affw, final.affw\n"
     "  --preset NAME       tiny | small | medium | paper (default tiny)\n"
     "  --init FILE.affw    start from these weights instead of a fresh model\n"
-    "  --albedo-demodulation  a fresh model filters diffuse / albedo and specular (docs/MODEL.md)\n"
-    "  --emission-bypass   a fresh model leaves emissive samples unfiltered (docs/MODEL.md)\n"
     "  --steps N           total steps (default 1000); a resumed run continues up to N\n"
     "  --minutes M         stop this run after M minutes of wall time (default: no limit)\n"
     "  --batch B           crops per step (4)      --crop C      crop side (64)\n"
@@ -72,7 +70,6 @@ int main(int argc, char** argv) {
                 options.resume = false;
                 continue;
             }
-            if (options.model.parseFlag(flag)) continue;
             // A removed or mistyped switch is named as unknown, not as missing its value.
             if (std::string(kValueOptions).find(" " + flag + " ") == std::string::npos)
                 throw affinity::Error("unknown option " + flag);

@@ -332,7 +332,7 @@ TrainSummary runTraining(const TrainOptions& options) {
     } else if (!options.initWeights.empty()) {
         model = modelFromWeights(Weights::fromFile(options.initWeights));
     } else {
-        model = makeModel(presetConfig(options.preset, options.model), options.seed);
+        model = makeModel(presetConfig(options.preset), options.seed);
     }
     model->to(device);
     model->train();

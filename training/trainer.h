@@ -16,7 +16,6 @@ struct TrainOptions {
     std::string outDir;         // loss.csv, checkpoint.affw, optimizer.pt, state.txt, best.affw, final.affw
     std::string preset = "tiny";
     std::string initWeights;    // start from this weights file instead of a fresh preset model
-    ModelOptions model;         // switches of a fresh preset model (albedo demodulation, emission bypass)
     std::uint64_t seed = 1;     // model initialisation and every random choice of the batches
     int steps = 1000;           // total optimisation steps (a resumed run continues up to this)
     double maxMinutes = 0;      // stop earlier after this much wall time in this run (0: no limit)

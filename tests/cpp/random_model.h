@@ -17,8 +17,6 @@ struct ModelShape {
     std::vector<int> encoder{8, 12};    // one conv per level
     int bottleneck = 16;
     int kernels = 3, affinityFeatures = 4, tapSize = 5;
-    bool albedoDemodulation = false;
-    bool emissionBypass = false;
 };
 
 inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shape, unsigned seed,
@@ -41,8 +39,6 @@ inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shap
     config("config.kernels", shape.kernels);
     config("config.affinity_features", shape.affinityFeatures);
     config("config.kernel_size", shape.tapSize);
-    if (shape.albedoDemodulation) config("config.albedo_demodulation", 1);
-    if (shape.emissionBypass) config("config.emission_bypass", 1);
     int in = 18;
     for (std::size_t i = 0; i < shape.embedding.size(); ++i) {
         add("embed." + std::to_string(i) + ".weight", {shape.embedding[i], in}, in);

@@ -1,6 +1,5 @@
 // What the kernels filter (core/src/network/filter_signal.h, docs/MODEL.md section 6): the embedding's
-// per-pixel sample sums against sums written out by hand, the radiance and demodulated signals
-// made from them, and the round trip back to radiance.
+// per-pixel sample sums against sums written out by hand, and the radiance signal made from them.
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -26,7 +25,8 @@ Embedding oneLayerEmbedding() {
     return Embedding({layer});
 }
 
-// Radiance and albedo over several magnitudes, with a few non-finite or negative values.
+// Radiance over several magnitudes, with a few non-finite or negative values, and flags that
+// must not change the sums.
 std::vector<float> samplesWithBadValues(int pixels, int spp, std::mt19937& rng) {
     std::vector<float> samples(std::size_t(pixels) * spp * kFeatureCount, 0.5f);
     std::uniform_real_distribution<float> unit(0.0f, 1.0f);
@@ -44,27 +44,22 @@ std::vector<float> samplesWithBadValues(int pixels, int spp, std::mt19937& rng) 
 
 float clean(float v) { return std::isfinite(v) && v > 0.0f ? v : 0.0f; }
 
-TEST(SampleSums, AreTheSanitisedSumsOfTheLightOfNonEmissiveAndEmissiveSamplesAndOfAlbedo) {
+TEST(SampleSums, AreTheSanitisedSumsOfTheDiffuseAndSpecularLightOfAllSamples) {
     std::mt19937 rng(1);
     const int height = 5, width = 7, spp = 3, pixels = height * width;
     const std::vector<float> samples = samplesWithBadValues(pixels, spp, rng);
     FeatureMap embedding, sums;
     oneLayerEmbedding().apply(samples.data(), height, width, spp, 1.0f, embedding, &sums);
     ASSERT_EQ(sums.channels(), Embedding::kSampleSumChannels);
-    int emissiveSamples = 0;
+    ASSERT_EQ(Embedding::kSampleSumChannels, 6);
     for (int p = 0; p < pixels; ++p) {
-        float expected[15] = {};
+        float expected[6] = {};
         for (int s = 0; s < spp; ++s) {
             const float* f = samples.data() + (std::size_t(p) * spp + s) * kFeatureCount;
-            const bool emissive = f[channel::kEmissive] > 0.5f && f[channel::kSpecularBounce] <= 0.5f;
-            emissiveSamples += emissive;
-            for (int c = 0; c < 6; ++c) expected[(emissive ? 9 : 0) + c] += clean(f[c]);
-            for (int c = 0; c < 3; ++c) expected[6 + c] += clean(f[channel::kAlbedo + c]);
+            for (int c = 0; c < 6; ++c) expected[c] += clean(f[c]);
         }
-        for (int c = 0; c < 15; ++c) EXPECT_EQ(sums.data()[p * 15 + c], expected[c]) << "pixel " << p << " sum " << c;
+        for (int c = 0; c < 6; ++c) EXPECT_EQ(sums.data()[p * 6 + c], expected[c]) << "pixel " << p << " sum " << c;
     }
-    EXPECT_GT(emissiveSamples, 10);
-    EXPECT_LT(emissiveSamples, pixels * spp - 10);
 }
 
 TEST(SampleSums, BatchesAddUpToTheWholeFrameBitForBit) {
@@ -84,96 +79,23 @@ TEST(SampleSums, BatchesAddUpToTheWholeFrameBitForBit) {
     for (std::size_t i = 0; i < wholeSums.size(); ++i) ASSERT_EQ(wholeSums.data()[i], batchSums.data()[i]) << i;
 }
 
-// One row of pixels from their 15 sums (Embedding::kSampleSumChannels order).
-FeatureMap sumsOf(const std::vector<std::vector<float>>& pixels) {
-    FeatureMap sums(1, int(pixels.size()), Embedding::kSampleSumChannels);
-    for (std::size_t p = 0; p < pixels.size(); ++p)
-        for (int c = 0; c < Embedding::kSampleSumChannels; ++c) sums.pixel(0, int(p))[c] = pixels[p][std::size_t(c)];
-    return sums;
-}
-
 TEST(FilterSignal, RadianceIsTheMeanOfAllTheLight) {
-    // Non-emissive diffuse 2 4 6, specular 1 1 2; emissive diffuse 1 0 0, specular 0 2 0.
-    const FeatureMap sums = sumsOf({{2, 4, 6, 1, 1, 2, 1, 1, 1, 1, 0, 0, 0, 2, 0}});
+    // Diffuse 2 4 6, specular 1 1 2, summed over 2 samples.
+    FeatureMap sums(1, 1, Embedding::kSampleSumChannels);
+    const float values[] = {2, 4, 6, 1, 1, 2};
+    std::copy(std::begin(values), std::end(values), sums.data());
     FeatureMap signal;
-    makeAccumulatedSignal(sums, 2, SignalLayout{}, signal);
-    ASSERT_EQ(signal.channels(), 3);
-    EXPECT_FLOAT_EQ(signal.data()[0], 2.0f);
-    EXPECT_FLOAT_EQ(signal.data()[1], 3.5f);
+    makeAccumulatedSignal(sums, 2, signal);
+    ASSERT_EQ(signal.channels(), kSignalChannels);
+    EXPECT_FLOAT_EQ(signal.data()[0], 1.5f);
+    EXPECT_FLOAT_EQ(signal.data()[1], 2.5f);
     EXPECT_FLOAT_EQ(signal.data()[2], 4.0f);
 }
 
-TEST(FilterSignal, EmissionBypassKeepsTheEmissiveSamplesLightApart) {
-    const FeatureMap sums = sumsOf({{2, 4, 6, 1, 1, 2, 1, 1, 1, 1, 0, 0, 0, 2, 0}});
-    FeatureMap signal;
-    makeAccumulatedSignal(sums, 2, SignalLayout{false, true}, signal);
-    ASSERT_EQ(signal.channels(), 6);
-    const float* p = signal.data();
-    EXPECT_FLOAT_EQ(p[0], 1.5f);  // (2 + 1) / 2, filtered
-    EXPECT_FLOAT_EQ(p[2], 4.0f);
-    EXPECT_FLOAT_EQ(p[3], 0.5f);  // (1 + 0) / 2, emitted
-    EXPECT_FLOAT_EQ(p[4], 1.0f);
-    EXPECT_FLOAT_EQ(p[5], 0.0f);
-}
-
-TEST(FilterSignal, DemodulationDividesTheDiffuseMeanByTheAlbedoMeanAboveTheFloor) {
-    // Pixel 0: albedo 0.5 / 0.25 / 0.2 over 2 samples; pixel 1: black albedo (floor 0.1).
-    const FeatureMap sums = sumsOf({{1.0f, 0.5f, 0.4f, 0.4f, 0.6f, 0.8f, 1.0f, 0.5f, 0.4f, 0, 0, 0, 0, 0, 0},
-                                    {0.0f, 0.02f, 0.0f, 3.0f, 3.0f, 3.0f, 0.0f, 0.0f, 0.0f, 0, 0, 0, 2, 2, 2}});
-    FeatureMap signal;
-    makeAccumulatedSignal(sums, 2, SignalLayout{true, true}, signal);
-    ASSERT_EQ(signal.channels(), 12);
-    const float* p0 = signal.pixel(0, 0);
-    EXPECT_FLOAT_EQ(p0[0], 0.5f / 0.5f);
-    EXPECT_FLOAT_EQ(p0[1], 0.25f / 0.25f);
-    EXPECT_FLOAT_EQ(p0[2], 0.2f / 0.2f);
-    EXPECT_FLOAT_EQ(p0[3], 0.2f);
-    EXPECT_FLOAT_EQ(p0[5], 0.4f);
-    EXPECT_FLOAT_EQ(p0[7], 0.25f);  // the albedo, accumulated beside the light
-    const float* p1 = signal.pixel(0, 1);
-    EXPECT_FLOAT_EQ(p1[1], 0.01f / kDemodulationFloor);
-    EXPECT_FLOAT_EQ(p1[4], 1.5f);
-    EXPECT_FLOAT_EQ(p1[6], 0.0f);
-    EXPECT_FLOAT_EQ(p1[9], 1.0f);  // emitted
-}
-
-TEST(FilterSignal, UnfilteredSignalGivesTheNoisyRadianceBack) {
-    std::mt19937 rng(3);
-    const int height = 6, width = 13, spp = 4;
-    const std::vector<float> samples = samplesWithBadValues(height * width, spp, rng);
-    FeatureMap embedding, sums;
-    oneLayerEmbedding().apply(samples.data(), height, width, spp, 1.0f, embedding, &sums);
-    for (int variant = 0; variant < 4; ++variant) {
-        const SignalLayout layout{(variant & 1) != 0, (variant & 2) != 0};
-        FeatureMap signal, filtered;
-        makeAccumulatedSignal(sums, spp, layout, signal);
-        // The kernels filter the first filteredChannels() of each pixel (here: not at all).
-        filtered.resize(height, width, layout.filteredChannels());
-        for (int p = 0; p < height * width; ++p)
-            std::copy(signal.data() + std::size_t(p) * layout.channels(),
-                      signal.data() + std::size_t(p) * layout.channels() + layout.filteredChannels(),
-                      filtered.data() + std::size_t(p) * layout.filteredChannels());
-        std::vector<float> radiance(std::size_t(height) * width * 3);
-        radianceFromSignal(filtered, signal, layout, radiance.data());
-        for (int p = 0; p < height * width; ++p)
-            for (int c = 0; c < 3; ++c) {
-                const float* sum = sums.data() + p * Embedding::kSampleSumChannels;
-                const float noisy = (sum[c] + sum[3 + c] + sum[9 + c] + sum[12 + c]) / float(spp);
-                EXPECT_NEAR(radiance[std::size_t(p) * 3 + c], noisy, 1e-5f * (1.0f + noisy))
-                    << "pixel " << p << " variant " << variant;
-            }
-    }
-}
-
 TEST(FilterSignal, RejectsWrongChannelCounts) {
-    FeatureMap signal, filtered;
-    EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, 9), 1, SignalLayout{}, signal), Error);
-    EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, 15), 0, SignalLayout{}, signal), Error);
-    std::vector<float> out(12);
-    EXPECT_THROW(radianceFromSignal(FeatureMap(2, 2, 6), FeatureMap(2, 3, 9), SignalLayout{true, false}, out.data()),
-                 Error);
-    EXPECT_THROW(radianceFromSignal(FeatureMap(2, 2, 6), FeatureMap(2, 2, 6), SignalLayout{true, false}, out.data()),
-                 Error);
+    FeatureMap signal;
+    EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, 9), 1, signal), Error);
+    EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, Embedding::kSampleSumChannels), 0, signal), Error);
 }
 
 }  // namespace

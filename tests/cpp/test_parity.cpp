@@ -78,25 +78,18 @@ TEST(Parity, RandomWeightsOnRandomSequences) {
 // Frames taller than the kernel stage's bands (128 rows each, rings of 158 rows):
 // parameters, accumulation and kernels run band by band on the C++ side, whole on the other.
 TEST(Parity, FramesOfSeveralBands) {
-    test::ModelShape shape;
-    shape.albedoDemodulation = true;
-    shape.emissionBypass = true;
     const std::string path = temporaryPath("tall.affw");
-    train::writeWeightsFile(path, test::randomModelTensors(shape, 8));
+    train::writeWeightsFile(path, test::randomModelTensors(test::ModelShape{}, 8));
     expectParity(path, test::randomSequence(3, 6, 231, 2, 8));
     std::filesystem::remove(path);
 }
 
-TEST(Parity, AlbedoDemodulatedAndEmissionBypassingRandomWeights) {
-    for (unsigned seed : {3u, 4u, 6u, 9u}) {
-        test::ModelShape shape;
-        shape.albedoDemodulation = seed != 6;
-        shape.emissionBypass = seed != 3;
-        const std::string path = temporaryPath("demodulated" + std::to_string(seed) + ".affw");
-        train::writeWeightsFile(path, test::randomModelTensors(shape, seed));
+TEST(Parity, DarkAlbedoAndNonFiniteFeatures) {
+    for (unsigned seed : {3u, 9u}) {
+        const std::string path = temporaryPath("nonfinite" + std::to_string(seed) + ".affw");
+        train::writeWeightsFile(path, test::randomModelTensors(test::ModelShape{}, seed));
         std::vector<SampleFrame> frames = test::randomSequence(4, 23, 17, 3, seed);
-        // Dark and black albedo too, where the demodulation floor applies, and non-finite
-        // features, which both sides read as 0.
+        // Black and dark albedo, and non-finite features, which both sides read as 0.
         for (SampleFrame& frame : frames) {
             for (int s = 0; s < frame.spp(); ++s) {
                 frame.sample(0, 0, s)[channel::kAlbedo] = 0.0f;
@@ -117,7 +110,7 @@ TEST(Parity, WideningATrainedModelKeepsTheFunction) {
     const std::string original = std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw";
     const std::string fresh = temporaryPath("medium_fresh.affw"), wide = temporaryPath("medium_widened.affw");
     const Weights trained = Weights::fromFile(original);
-    train::writeInitialModel(train::presetConfig("medium", train::configFromWeights(trained)), 3, fresh);
+    train::writeInitialModel(train::presetConfig("medium"), 3, fresh);
     train::writeWeightsFile(wide, train::widened(trained, Weights::fromFile(fresh)));
     const Weights grown = Weights::fromFile(wide);
     EXPECT_GT(grown.tensor("unet.dec0.conv0.weight").count, trained.tensor("unet.dec0.conv0.weight").count);
@@ -136,26 +129,13 @@ TEST(Parity, WideningATrainedModelKeepsTheFunction) {
 
 TEST(Parity, EveryPresetAtInitialisation) {
     for (const std::string& preset : train::presetNames()) {
-        for (int variant = 0; variant < 4; ++variant) {
-            const std::string path = temporaryPath(preset + std::to_string(variant) + ".affw");
-            train::ModelOptions options;
-            options.albedoDemodulation = variant == 1 || variant == 2;
-            options.emissionBypass = variant >= 2;
-            train::writeInitialModel(train::presetConfig(preset, options), 7, path);
-            expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
-            std::filesystem::remove(path);
-        }
+        const std::string path = temporaryPath(preset + ".affw");
+        train::writeInitialModel(train::presetConfig(preset), 7, path);
+        expectParity(path, test::randomSequence(3, 19, 13, 2, 11));
+        std::filesystem::remove(path);
     }
 }
 
 TEST(Parity, TheShippedDefaultModel) {
     expectParity(std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw", test::randomSequence(3, 16, 16, 4, 5));
-}
-
-// The CPU-trained model with albedo demodulation and emission bypass (docs/TRAINING.md): not
-// shipped, kept as the trained model that holds those two switches to parity while Cycles
-// fine-tunes with them are trained.
-TEST(Parity, TheDemodulatedBypassModel) {
-    expectParity(std::string(AFFINITY_SOURCE_DIR) + "/core/models/small_demod_bypass.affw",
-                 test::randomSequence(3, 16, 16, 4, 6));
 }

@@ -121,24 +121,6 @@ TEST(TorchModel, ParameterNamesAndShapesFollowModelDoc) {
     }
 }
 
-TEST(ModelOptions, EachFlagSetsItsSwitchAndPresetsCarryThem) {
-    ModelOptions options;
-    EXPECT_FALSE(options.parseFlag("--albedo"));
-    EXPECT_FALSE(options.parseFlag("--fresh"));
-    EXPECT_TRUE(options.parseFlag("--emission-bypass"));
-    EXPECT_TRUE(!options.albedoDemodulation && options.emissionBypass);
-    // Switches of removed variants are unknown flags (the trainer then rejects them).
-    EXPECT_FALSE(options.parseFlag("--source-weights"));
-    EXPECT_FALSE(options.parseFlag("--emission-lambda"));
-    EXPECT_TRUE(options.parseFlag("--albedo-demodulation"));
-    const ModelConfig config = presetConfig("tiny", options);
-    EXPECT_TRUE(config.albedoDemodulation && config.emissionBypass);
-    EXPECT_EQ(config.headChannels(), 3 * (8 + 2) + 2);
-    const ModelConfig plain = presetConfig("tiny");
-    EXPECT_FALSE(plain.albedoDemodulation || plain.emissionBypass);
-    EXPECT_EQ(plain.embedWidths, config.embedWidths);
-}
-
 TEST(TorchModel, SmallPresetHasTheDocumentedTensorNames) {
     AffinityModel model = makeModel(presetConfig("small"), 1);
     std::vector<std::string> names;
@@ -228,18 +210,20 @@ TEST(TorchModel, InconsistentWeightsAreRejected) {
     tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
     tensors.push_back({"unet.extra", DType::Float32, {1}, {0.0f}, {}});
     rejects(tensors, "unet.extra");
-    for (const char* option : {"config.albedo_demodulation", "config.emission_bypass", "config.source_weights",
-                               "config.emission_lambda"}) {
+    for (const char* option : {"config.source_weights", "config.emission_lambda", "config.albedo_demodulation",
+                               "config.emission_bypass"}) {
         tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
         tensors.push_back({option, DType::Int32, {1}, {}, {2}});  // a switch is 0 or 1
         rejects(tensors, std::string(option) + " is 2, expected 0 or 1");
     }
     // A removed variant's switch turned on is refused by name, not read as a different model
     // (docs/TRAINING.md, "Tried and lost"); turned off it is the model itself.
-    for (const char* removed : {"config.source_weights", "config.emission_lambda"}) {
+    for (const char* removed : {"config.source_weights", "config.emission_lambda", "config.albedo_demodulation",
+                                "config.emission_bypass"}) {
         tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
         tensors.push_back({removed, DType::Int32, {1}, {}, {1}});
-        rejects(tensors, std::string(removed) + " = 1: ");
+        rejects(tensors, std::string(removed) + " = 1: the option ");
+        rejects(tensors, " was removed");
         tensors.back().ints = {0};
         const std::vector<std::uint8_t> bytes = serializeWeights(tensors);
         EXPECT_NO_THROW(configFromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "off.affw"))) << removed;
@@ -367,8 +351,9 @@ struct FilterInputs {
     TemporalTaps temporal;
 };
 
-// C signal channels (3: radiance, 6: demodulated).
-FilterInputs randomFilterInputs(std::int64_t H, std::int64_t W, std::int64_t F, std::int64_t C = 3) {
+// A radiance signal (3 channels) and F features per pixel.
+FilterInputs randomFilterInputs(std::int64_t H, std::int64_t W, std::int64_t F) {
+    const std::int64_t C = 3;
     const auto o = torch::TensorOptions().dtype(torch::kDouble);
     FilterInputs in;
     in.radiance = leaf(torch::rand({1, C, H, W}, o) * 2);
@@ -381,53 +366,17 @@ FilterInputs randomFilterInputs(std::int64_t H, std::int64_t W, std::int64_t F, 
 
 TEST(TorchOps, AffinityFiltersMatchTheFormulas) {
     torch::manual_seed(2);
-    for (int variant = 0; variant < 2; ++variant) {
-        // Radiance; a demodulated six-channel signal.
-        const FilterInputs in = randomFilterInputs(7, 9, 3, variant == 0 ? 3 : 6);
-        for (int dilation : {1, 2, 4, 8}) {
-            torch::NoGradGuard noGrad;
-            EXPECT_LT(maxAbsDiff(affinityFilter(in.radiance, in.kernel, 5, dilation),
-                                 directFilter(in.radiance, in.kernel, 5, dilation, nullptr)),
-                      1e-12)
-                << dilation << " variant " << variant;
-            EXPECT_LT(maxAbsDiff(affinityFilterTemporal(in.radiance, in.kernel, 3, dilation, in.temporal),
-                                 directFilter(in.radiance, in.kernel, 3, dilation, &in.temporal)),
-                      1e-12)
-                << dilation << " variant " << variant;
-        }
-    }
-}
-
-TEST(TorchOps, DemodulationAndBypassAreUndoneExactlyWithoutFiltering) {
-    torch::Tensor samples = torch::rand({1, 3, 18, 4, 5}, torch::kDouble);
-    samples[0][0][10][0][0] = 0.0;  // black albedo in every sample of a pixel: the floor applies
-    samples[0][1][10][0][0] = 0.0;
-    samples[0][2][10][0][0] = 0.0;
-    samples.narrow(2, 14, 1).copy_((torch::rand({1, 3, 1, 4, 5}, torch::kDouble) < 0.3).to(torch::kDouble));
-    samples.narrow(2, 17, 1).copy_((torch::rand({1, 3, 1, 4, 5}, torch::kDouble) < 0.3).to(torch::kDouble));
-    for (int variant = 0; variant < 4; ++variant) {
-        const bool demodulation = variant & 1, bypass = variant & 2;
-        const PreparedInputs prepared = prepareInputs(samples, bypass);
-        const torch::Tensor signal = accumulatedSignal(prepared, demodulation, bypass);
-        const std::int64_t filtered = demodulation ? 6 : 3;
-        EXPECT_EQ(signal.size(1), filtered + (demodulation ? 3 : 0) + (bypass ? 3 : 0));
-        const torch::Tensor rest =
-            signal.size(1) > filtered ? signal.narrow(1, filtered, signal.size(1) - filtered) : torch::Tensor();
-        EXPECT_LT(maxAbsDiff(radianceFromSignal(signal.narrow(1, 0, filtered), rest, demodulation, bypass),
-                             prepared.radiance),
+    const FilterInputs in = randomFilterInputs(7, 9, 3);
+    for (int dilation : {1, 2, 4, 8}) {
+        torch::NoGradGuard noGrad;
+        EXPECT_LT(maxAbsDiff(affinityFilter(in.radiance, in.kernel, 5, dilation),
+                             directFilter(in.radiance, in.kernel, 5, dilation, nullptr)),
                   1e-12)
-            << "variant " << variant;
-        if (demodulation) {
-            EXPECT_LT(maxAbsDiff(signal[0][0][0][0], prepared.diffuse[0][0][0][0] / kDemodulationFloor), 1e-12);
-        }
-        if (bypass) {
-            // Direct emission is all in `emitted`, the rest all in diffuse + specular.
-            const torch::Tensor emissive = (samples.narrow(2, 14, 1) > 0.5).logical_and(samples.narrow(2, 17, 1) <= 0.5);
-            const torch::Tensor light = samples.narrow(2, 0, 3) + samples.narrow(2, 3, 3);
-            EXPECT_LT(maxAbsDiff(prepared.emitted, torch::where(emissive, light, 0.0).mean(1)), 1e-12);
-            EXPECT_LT(maxAbsDiff(prepared.diffuse + prepared.specular, torch::where(emissive, 0.0, light).mean(1)),
-                      1e-12);
-        }
+            << dilation;
+        EXPECT_LT(maxAbsDiff(affinityFilterTemporal(in.radiance, in.kernel, 3, dilation, in.temporal),
+                             directFilter(in.radiance, in.kernel, 3, dilation, &in.temporal)),
+                  1e-12)
+            << dilation;
     }
 }
 
@@ -461,7 +410,7 @@ TEST(TorchOps, SanitisesRadianceAndScalesDepthPerFrame) {
     const torch::Tensor exposure = prepared.exposure.view({2, 1, 1, 1, 1});
     EXPECT_LT(maxAbsDiff(prepared.networkInput.narrow(2, 0, 6), torch::log1p(clean.narrow(2, 0, 6) * exposure)), 1e-6);
     // A sequence's exposure, where given and not 0, replaces the frame's own.
-    const PreparedInputs later = prepareInputs(samples, false, torch::tensor({2.0f, 0.0f}));
+    const PreparedInputs later = prepareInputs(samples, torch::tensor({2.0f, 0.0f}));
     EXPECT_FLOAT_EQ(later.exposure[0].item<float>(), 2.0f);
     EXPECT_FLOAT_EQ(later.exposure[1].item<float>(), prepared.exposure[1].item<float>());
     EXPECT_LT(maxAbsDiff(prepared.radiance, (clean.narrow(2, 0, 3) + clean.narrow(2, 3, 3)).mean(1)), 1e-6);
@@ -628,17 +577,6 @@ TEST(TorchGradients, AffinityKernel) {
     expectGradientMatches(loss, in.kernel.centre, someIndices(in.kernel.centre.numel()), "affinity: centre");
 }
 
-TEST(TorchGradients, TemporalKernelOnASixChannelSignal) {
-    torch::manual_seed(15);
-    const FilterInputs in = randomFilterInputs(6, 7, 3, 6);
-    const torch::Tensor weights = torch::randn({1, 6, 6, 7}, torch::kDouble);
-    auto loss = [&] { return (affinityFilterTemporal(in.radiance, in.kernel, 5, 2, in.temporal) * weights).sum(); };
-    expectGradientMatches(loss, in.radiance, someIndices(in.radiance.numel()), "six channels: signal");
-    expectGradientMatches(loss, in.kernel.features, someIndices(in.kernel.features.numel()), "six channels: features");
-    expectGradientMatches(loss, in.temporal.output, someIndices(in.temporal.output.numel()),
-                          "six channels: warped output");
-}
-
 TEST(TorchGradients, TemporalKernel) {
     torch::manual_seed(13);
     const FilterInputs in = randomFilterInputs(6, 7, 3);
@@ -676,32 +614,6 @@ TEST(TorchGradients, WholePipelineOverTwoFrames) {
     std::vector<std::int64_t> sampleIndices;
     for (std::int64_t channel : {0, 4, 6, 9, 10, 13}) sampleIndices.push_back((18 + channel) * plane + 2 * 9 + 4);
     expectGradientMatches(loss, frames[0].samples, sampleIndices, "pipeline: frame 1 samples");
-}
-
-TEST(TorchGradients, DemodulatedPipelineOverTwoFrames) {
-    ModelConfig config = presetConfig("tiny");
-    config.albedoDemodulation = true;
-    AffinityModel model = makeModel(config, 16);
-    model->to(torch::kDouble);
-    torch::manual_seed(16);
-    std::vector<FrameInput> frames = randomSequence(2, 2, 7, 9, torch::kDouble);
-    frames[1].valid.fill_(1.0);
-    frames[0].samples = leaf(frames[0].samples);
-    const std::vector<torch::Tensor> weights = {torch::randn({1, 3, 7, 9}, torch::kDouble),
-                                                torch::randn({1, 3, 7, 9}, torch::kDouble)};
-    auto loss = [&] {
-        const auto outputs = model->forwardSequence(frames);
-        return (outputs[0] * weights[0]).sum() + (outputs[1] * weights[1]).sum();
-    };
-    for (const std::string name : {"embed.0.weight", "unet.dec0.conv0.weight", "unet.head.weight", "unet.head.bias"}) {
-        const torch::Tensor p = parameter(model, name);
-        expectGradientMatches(loss, p, someIndices(p.numel(), 4), "demodulated pipeline: " + name);
-    }
-    // Diffuse, specular and albedo of frame 1 reach frame 2 through the demodulated histories.
-    const std::int64_t plane = 7 * 9;
-    std::vector<std::int64_t> sampleIndices;
-    for (std::int64_t channel : {0, 4, 10, 12}) sampleIndices.push_back((18 + channel) * plane + 2 * 9 + 4);
-    expectGradientMatches(loss, frames[0].samples, sampleIndices, "demodulated pipeline: frame 1 samples");
 }
 
 }  // namespace

@@ -51,9 +51,9 @@ inline constexpr double exposureForKey(double key) {
 }
 inline constexpr float kRoughnessFloor = 0.02f;
 // Radiance above this reads as invalid (0, and counted) like NaN, Inf and negative values: no
-// light comes near it (a sun's disc is about 1e9), and sums of kMaxSpp such samples, divided by
-// the demodulation floor and filtered, stay far inside the float range. Four samples of 9e37
-// once summed to Inf, and Inf - Inf spread NaN over a quarter of the frame.
+// light comes near it (a sun's disc is about 1e9), and sums of kMaxSpp such samples, filtered,
+// stay far inside the float range. Four samples of 9e37 once summed to Inf, and Inf - Inf spread
+// NaN over a quarter of the frame.
 inline constexpr float kMaxRadiance = 1e20f;
 
 inline constexpr std::array<FeatureGroup, 10> kFeatureGroups{{

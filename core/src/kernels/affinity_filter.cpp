@@ -17,8 +17,8 @@ namespace affinity {
 namespace {
 
 constexpr int kLanes = 8;  // of the row transposes
-// Filtered signals: RGB radiance, or demodulated diffuse RGB + specular RGB (filter_signal.h).
-constexpr int kSignalChannelCounts[] = {3, 6};
+// The filtered signal: RGB radiance (network/filter_signal.h).
+constexpr int kSignalChannels = 3;
 
 Vec8f load8(const float* p) {
     Vec8f v;
@@ -66,7 +66,6 @@ private:
             switch (channels) {
                 case 1: std::memcpy(destination, pixels, std::size_t(width_) * sizeof(float)); break;
                 case 3: deinterleave<3>(pixels, destination); break;
-                case 6: deinterleave<6>(pixels, destination); break;
                 case 8: transposeEights(pixels, destination); break;
                 default: deinterleave<0>(pixels, destination, channels); break;
             }
@@ -151,10 +150,9 @@ void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tap
     const int features = kernel.features->channels();
     if (features < 1) throw Error("affinity filter: the kernel has no features");
     const int channels = radiance.channels();
-    if (std::find(std::begin(kSignalChannelCounts), std::end(kSignalChannelCounts), channels) ==
-        std::end(kSignalChannelCounts))
+    if (channels != kSignalChannels)
         throw Error("affinity filter: the filtered signal has " + std::to_string(channels) +
-                    " channels, expected 3 (radiance) or 6 (demodulated diffuse and specular)");
+                    " channels, expected 3 (RGB radiance)");
     checkMap(radiance, "the filtered signal", imageHeight, ringRows, width, channels);
     checkMap(*kernel.features, "the features", imageHeight, ringRows, width, features);
     checkMap(*kernel.bandwidth, "the bandwidth a", imageHeight, ringRows, width, 1);
@@ -175,11 +173,11 @@ bool isInput(const FeatureMap& map, const FeatureMap& radiance, const KernelPara
 }
 
 // 16 lanes for AVX-512 (the same bits as 8); the caller has checked that the CPU has it.
-FilterRowFunction rowFunction(ConvIsa isa, bool temporal, int features, int channels) {
+FilterRowFunction rowFunction(ConvIsa isa, bool temporal, int features) {
 #if AFFINITY_HAVE_AVX512_KERNEL
-    if (isa == ConvIsa::Avx512) return filterRowFunctionAvx512(temporal, features, channels);
+    if (isa == ConvIsa::Avx512) return filterRowFunctionAvx512(temporal, features);
 #endif
-    return filterRowFunction<8>(temporal, features, channels);
+    return filterRowFunction<8>(temporal, features);
 }
 
 // The shared driver of both passes: rows in parallel, each thread with its own planar rows.
@@ -206,7 +204,7 @@ void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int t
     if (temporal != nullptr) spatialSources.push_back(temporal->bandwidth);
     if (isa == ConvIsa::Avx512 && !cpuHasAvx512())
         throw Error("affinity filter: the AVX-512 path was asked for, but this CPU or build has no AVX-512");
-    const FilterRowFunction filterRowFunctionFor = rowFunction(isa, temporal != nullptr, features, radiance.channels());
+    const FilterRowFunction filterRowFunctionFor = rowFunction(isa, temporal != nullptr, features);
 
     // Allocated outside the parallel region so that an allocation failure throws normally.
     const int threads = std::max(1, omp_get_max_threads());

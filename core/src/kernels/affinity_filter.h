@@ -23,8 +23,8 @@ struct TemporalTaps {
 };
 
 // One dilated spatial pass: output = normalised affinity-weighted sum of `radiance`, the
-// filtered signal (3 channels, or 6 when demodulated: filter_signal.h), over the
-// tapSize x tapSize grid with the given dilation.
+// filtered signal (3 channels, filter_signal.h), over the tapSize x tapSize grid with the given
+// dilation.
 void affinityFilter(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
                     FeatureMap& output);
 

@@ -4,8 +4,8 @@
 
 namespace affinity {
 
-FilterRowFunction filterRowFunctionAvx512(bool temporal, int features, int channels) {
-    return filterRowFunction<16>(temporal, features, channels);
+FilterRowFunction filterRowFunctionAvx512(bool temporal, int features) {
+    return filterRowFunction<16>(temporal, features);
 }
 
 }  // namespace affinity

@@ -34,7 +34,7 @@ inline constexpr int kMaxStripPixels = kStripVectors * 16;
 
 #if AFFINITY_HAVE_AVX512_KERNEL
 // The row function for these inputs with 16 lanes (call only where cpuHasAvx512()).
-FilterRowFunction filterRowFunctionAvx512(bool temporal, int features, int channels);
+FilterRowFunction filterRowFunctionAvx512(bool temporal, int features);
 #endif
 
 // Internal linkage: each instruction set's translation unit keeps its own copies.
@@ -190,15 +190,11 @@ FilterRowFunction selectRowFunction(int features, std::integer_sequence<int, kCo
     return chosen;
 }
 
-// The row function for `features` features and a signal of `channels` (3 or 6) channels.
+// The row function for `features` features and the 3 channels of the signal (RGB radiance).
 template <int L>
-FilterRowFunction filterRowFunction(bool temporal, int features, int channels) {
+FilterRowFunction filterRowFunction(bool temporal, int features) {
     constexpr auto counts = std::make_integer_sequence<int, kMaxSpecialisedFeatures>{};
-    if (temporal)
-        return channels == 3 ? selectRowFunction<L, 3, true>(features, counts)
-                             : selectRowFunction<L, 6, true>(features, counts);
-    return channels == 3 ? selectRowFunction<L, 3, false>(features, counts)
-                         : selectRowFunction<L, 6, false>(features, counts);
+    return temporal ? selectRowFunction<L, 3, true>(features, counts) : selectRowFunction<L, 3, false>(features, counts);
 }
 
 }  // namespace

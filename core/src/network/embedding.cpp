@@ -70,48 +70,21 @@ long long prepareSamples(const float* samples, int count, InputScales scales, fl
     return total;
 }
 
-// Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (radiance from the sanitised
-// `radiance`, albedo and emissive flag from the raw `samples`) over its spp samples in order to
-// `sums`, starting from 0 when `first`. One 8-lane vector per sample for each of the lit and
-// the emitted radiance (6 channels used) and the albedo (3 used), branch-free (the flag and
-// albedo tests mispredicted on noisy data): a sample's radiance is added to both its own sums
-// and the other kind's times 0 (adding +0 leaves a sum unchanged, and the sanitised radiance is
-// finite). `radiance` must have 2 readable floats past its last sample.
-void addSampleSums(const float* samples, const float* radiance, int pixels, int spp, bool first, float* sums) {
+// Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (diffuse and specular RGB of
+// the sanitised `radiance`) over its spp samples in order to `sums`, starting from 0 when
+// `first`: one 8-lane add per sample (6 lanes used). `radiance` must have 2 readable floats past
+// its last sample.
+void addSampleSums(const float* radiance, int pixels, int spp, bool first, float* sums) {
     constexpr int kSums = Embedding::kSampleSumChannels;
-    static_assert(Embedding::kSumSpecular == Embedding::kSumDiffuse + 3 &&
-                      Embedding::kSumEmittedSpecular == Embedding::kSumEmittedDiffuse + 3,
-                  "diffuse and specular sums are adjacent, as in the radiance");
-    static_assert(channel::kAlbedo + 8 <= kFeatureCount, "an 8-lane load at the albedo stays in the sample");
-    const Vec8f largest = broadcast8(3.40282347e38f);
+    static_assert(Embedding::kSumDiffuse == 0 && Embedding::kSumSpecular == 3 && kSums == kRadianceChannels,
+                  "the sums are laid out as a sample's radiance");
     for (int p = 0; p < pixels; ++p) {
         float* o = sums + std::size_t(p) * kSums;
-        Vec8f lit{}, emitted{}, albedo{};
-        if (!first) {
-            for (int c = 0; c < kRadianceChannels; ++c) {
-                lit[c] = o[Embedding::kSumDiffuse + c];
-                emitted[c] = o[Embedding::kSumEmittedDiffuse + c];
-            }
-            for (int c = 0; c < 3; ++c) albedo[c] = o[Embedding::kSumAlbedo + c];
-        }
-        for (int s = 0; s < spp; ++s) {
-            const std::size_t sample = std::size_t(p) * spp + std::size_t(s);
-            const Vec8f r = load8(radiance + sample * kRadianceChannels);
-            const float* raw = samples + sample * kFeatureCount;
-            // Bypassed light: an emitter or the sky seen directly (through a mirror or glass the
-            // path's choices make it as noisy as any other light). False for NaN flags.
-            const float isEmitted =
-                float(int(raw[channel::kEmissive] > 0.5f) & int(!(raw[channel::kSpecularBounce] > 0.5f)));
-            lit += r * (1.0f - isEmitted);
-            emitted += r * isEmitted;
-            const Vec8f a = load8(raw + channel::kAlbedo);
-            albedo += ((a > 0.0f) & (a <= largest)) ? a : Vec8f{};  // false for NaN
-        }
-        for (int c = 0; c < kRadianceChannels; ++c) {
-            o[Embedding::kSumDiffuse + c] = lit[c];
-            o[Embedding::kSumEmittedDiffuse + c] = emitted[c];
-        }
-        for (int c = 0; c < 3; ++c) o[Embedding::kSumAlbedo + c] = albedo[c];
+        Vec8f sum{};
+        if (!first)
+            for (int c = 0; c < kSums; ++c) sum[c] = o[c];
+        for (int s = 0; s < spp; ++s) sum += load8(radiance + (std::size_t(p) * spp + std::size_t(s)) * kRadianceChannels);
+        for (int c = 0; c < kSums; ++c) o[c] = sum[c];
     }
 }
 
@@ -210,10 +183,10 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
             const float* chunkInput = samples.pixels(p0, count, gather.data());
             bad += prepareSamples(chunkInput, n, scales, input.data(), radiance.data());
             if (sampleSums) {
-                addSampleSums(chunkInput, radiance.data(), count, spp, firstSums,
+                addSampleSums(radiance.data(), count, spp, firstSums,
                               sampleSums->data() + std::size_t(p0) * kSampleSumChannels);
             } else if (sink) {
-                addSampleSums(chunkInput, radiance.data(), count, spp, true, chunkSums.data());
+                addSampleSums(radiance.data(), count, spp, true, chunkSums.data());
                 (*sink)(p0, count, chunkSums.data());
             }
 

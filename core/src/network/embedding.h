@@ -56,12 +56,9 @@ public:
 
     // Per-pixel sums over the samples that apply() and accumulate() can write beside the
     // embedding, without a second pass over the samples, added in sample order, of sanitised
-    // values (non-finite or negative read as 0): diffuse RGB and specular RGB of the samples other
-    // than direct emission, albedo RGB of all, diffuse RGB and specular RGB of the direct emission
-    // ones (flagged emissive and not specular_bounce: an emitter or the sky seen directly).
-    static constexpr int kSampleSumChannels = 15;
-    static constexpr int kSumDiffuse = 0, kSumSpecular = 3, kSumAlbedo = 6, kSumEmittedDiffuse = 9,
-                         kSumEmittedSpecular = 12;
+    // values (non-finite or negative read as 0): diffuse RGB and specular RGB.
+    static constexpr int kSampleSumChannels = 6;
+    static constexpr int kSumDiffuse = 0, kSumSpecular = 3;
 
     // samples: [pixels][spp][kFeatureCount] raw features (frame layout); scales from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).

@@ -41,8 +41,8 @@ public:
     // (0 or absent) is the model this code computes; on, the file is refused rather than misread.
     void removedFlag(const std::string& name, const std::string& what) {
         if (flag(name))
-            fail(name + " = 1: " + what +
-                 " were removed (no shipped model used them); this version cannot run the model");
+            fail(name + " = 1: the option " + what +
+                 " was removed (no shipped model used it); this version cannot run the model");
     }
 
     // A conv "<prefix>.weight" [out, in, size, size] + "<prefix>.bias" [out] whose input count
@@ -135,10 +135,10 @@ Network buildNetwork(const Weights& weights, Precision precision) {
     n.affinityFeatures = b.config("config.affinity_features", 1, 64);
     n.tapSize = b.config("config.kernel_size", 1, 15);
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
-    n.albedoDemodulation = b.flag("config.albedo_demodulation");
-    n.emissionBypass = b.flag("config.emission_bypass");
     b.removedFlag("config.source_weights", "source weights");
-    b.removedFlag("config.emission_lambda", "separate emission lambdas");
+    b.removedFlag("config.emission_lambda", "a separate emission lambda");
+    b.removedFlag("config.albedo_demodulation", "albedo demodulation");
+    b.removedFlag("config.emission_bypass", "emission bypass");
 
     std::vector<DenseLayer> dense = b.embedding();
     n.embeddingWidths.push_back(dense.front().in);

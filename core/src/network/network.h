@@ -7,7 +7,6 @@
 
 #include "affinity/precision.h"
 #include "network/embedding.h"
-#include "network/filter_signal.h"
 #include "network/unet_layers.h"
 
 namespace affinity {
@@ -23,10 +22,6 @@ struct Network {
     std::vector<std::vector<Conv2d>> decoder;  // [level][conv], level 0 = full resolution
     std::optional<Conv2d> head;                // 1x1 convolution to headChannels()
     int kernels = 3, affinityFeatures = 8, tapSize = 5;
-    // Kept although no shipped model uses them: Cycles fine-tunes with both are being trained
-    // (core/models/small_demod_bypass.affw and its parity test hold them to the trainer).
-    bool albedoDemodulation = false;  // the kernels filter diffuse / albedo and specular
-    bool emissionBypass = false;      // emissive samples are accumulated but not filtered
     std::int64_t parameterCount = 0;
     Precision precision = Precision::Float32;  // of the products (affinity/precision.h), never Auto
 
@@ -34,8 +29,6 @@ struct Network {
     int kernelChannels() const { return affinityFeatures + 2; }
     // Head output channels: K kernelChannels() + 2 (temporal bandwidth, lambda).
     int headChannels() const { return kernels * kernelChannels() + 2; }
-    // Where the filtered and the only accumulated channels sit (filter_signal.h).
-    SignalLayout signalLayout() const { return SignalLayout{albedoDemodulation, emissionBypass}; }
 };
 
 // Throws affinity::Error naming the source and the first inconsistency, or where

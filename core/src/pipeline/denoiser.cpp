@@ -206,9 +206,9 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     pool.give(frame.signal);
     history.keep(std::move(accumulated.embedding), std::move(accumulated.signal));
 
-    // Radiance from the last kernel's output (and what it filtered around).
-    std::vector<float> radiance(std::size_t(width) * std::size_t(height) * 3);
-    radianceFromSignal(history.output, history.signal, net.signalLayout(), radiance.data());
+    // The last kernel's output is the radiance.
+    const float* output = history.output.data();
+    std::vector<float> radiance(output, output + std::size_t(width) * std::size_t(height) * kSignalChannels);
     local.bufferBytes = pool.heldCapacity() * sizeof(float);
     if (report) *report = local;
     return radiance;

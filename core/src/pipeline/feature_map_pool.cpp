@@ -14,9 +14,9 @@ FeatureMap FeatureMapPool::take(int height, int width, int channels) {
     }
     std::size_t pick = best != free_.size() ? best : largest;
     // A free map much larger than the request is kept for a later, larger request: cutting it
-    // down now would cost a new allocation then. The ratio was measured: peak RSS at 1080p and
-    // 720p, streamed and whole frames, tiny, small and demodulated small models were lowest
-    // around 6x (1080p small streamed: 1587 MiB at 2x, 1516 at 4x, 1477 at 6x, 1532 at 33x).
+    // down now would cost a new allocation then. kKeepRatio is where peak memory was lowest at
+    // 1080p and 720p, streamed and whole frames, over the models (bench_denoiser; the figures
+    // are in commit 2b213e4's message).
     if (best != free_.size() && free_[best].capacity() > keepRatio_ * needed) pick = free_.size();
     FeatureMap map;
     if (pick != free_.size()) {

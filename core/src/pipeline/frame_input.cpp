@@ -66,13 +66,12 @@ EmbeddedFrame embedWholeFrame(const Network& net, FeatureMapPool& pool, Sequence
     frame.embedding = pool.take(height, samples.width, net.embedding->outChannels());
     // The signal straight from each chunk's sample sums: a map of the sums would be the third
     // largest while the samples are held.
-    const SignalLayout layout = net.signalLayout();
-    frame.signal = pool.take(height, samples.width, layout.channels());
-    const int spp = samples.spp, channels = layout.channels();
+    frame.signal = pool.take(height, samples.width, kSignalChannels);
+    const int spp = samples.spp;
     float* signal = frame.signal.data();
     frame.invalidRadiance = net.embedding->apply(
         samples, height, scales, frame.embedding, [&](long long firstPixel, int count, const float* sums) {
-            signalFromSums(sums, count, spp, layout, signal + std::size_t(firstPixel) * std::size_t(channels));
+            signalFromSums(sums, count, spp, signal + std::size_t(firstPixel) * std::size_t(kSignalChannels));
         });
     return frame;
 }
@@ -173,9 +172,8 @@ EmbeddedFrame FrameInput::finishStreamed(const Network& net, FeatureMapPool& poo
         net.embedding->finish(hiddenSum_, spp_, frame.embedding);
         pool.give(hiddenSum_);
     }
-    const SignalLayout layout = net.signalLayout();
-    frame.signal = pool.take(sampleSums_.height(), sampleSums_.width(), layout.channels());
-    makeAccumulatedSignal(sampleSums_, spp_, layout, frame.signal);
+    frame.signal = pool.take(sampleSums_.height(), sampleSums_.width(), kSignalChannels);
+    makeAccumulatedSignal(sampleSums_, spp_, frame.signal);
     pool.give(sampleSums_);
     frame.invalidRadiance = invalidRadiance_;
     frame.exposure = exposure_;

@@ -13,9 +13,9 @@ namespace affinity {
 
 class SequenceHistory {
 public:
-    // The temporal maps, valid while has(): the accumulated embedding and signal (in the signal's
-    // channels, filter_signal.h) and the last kernel's output (the filtered channels) and
-    // features. The stages read them and put the frame's own in their place.
+    // The temporal maps, valid while has(): the accumulated embedding and signal (the radiance,
+    // filter_signal.h) and the last kernel's output (the denoised radiance) and features. The
+    // stages read them and put the frame's own in their place.
     FeatureMap embedding, signal, output, lastFeatures;
 
     bool has() const { return has_; }

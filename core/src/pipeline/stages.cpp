@@ -8,6 +8,7 @@
 #include "kernels/bilinear_warp.h"
 #include "kernels/catmull_rom_warp.h"
 #include "kernels/fast_exp.h"
+#include "network/filter_signal.h"
 #include "pipeline/band_schedule.h"
 
 namespace affinity {
@@ -194,8 +195,8 @@ void Stages::parametersAndAccumulation(const UnetTail& tail, int begin, int end,
     if (sourceChannels != last.inChannels() || head.inChannels() != last.outChannels() ||
         head.outChannels() != net.headChannels())
         throw Error("denoise: the model's last layers do not fit together");
-    const int E = embedding.channels(), S = signal.channels(), C = filterIn.channels();
-    if (C > S) throw Error("denoise: the filtered channels must be part of the accumulated signal");
+    const int E = embedding.channels(), C = filterIn.channels();
+    if (C != signal.channels()) throw Error("denoise: the filter's input and the accumulated signal differ in channels");
     const int tiles = (columns + kConvTileWidth - 1) / kConvTileWidth;
     // The convolution runs kWinogradRows rows at a time (its Winograd form's tiles); a group
     // reaching past the band is recomputed by the neighbouring band, but only the band's rows go on.
@@ -245,7 +246,7 @@ void Stages::parametersAndAccumulation(const UnetTail& tail, int begin, int end,
                 }
                 sigmoidInPlace(lambda.data(), x1 - x0);
                 // 3 (continued). history = (1 - lambda) current + lambda history, in place; the
-                // kernels filter the first C channels of the accumulated signal (C <= S).
+                // kernels filter the accumulated signal.
                 // The filtered copy is stored from the same values: reading the just-stored floats
                 // back as one wider load stalled on store forwarding (a third of this stage's time).
                 float* filtered = row(filterIn);
@@ -259,8 +260,6 @@ void Stages::parametersAndAccumulation(const UnetTail& tail, int begin, int end,
                     float* f = filtered + std::size_t(x) * C;
                     for (int c = 0; c < C; ++c)
                         f[c] = accumulatedSignal[c] = (1.0f - l) * current[c] + l * accumulatedSignal[c];
-                    for (int c = C; c < S; ++c)
-                        accumulatedSignal[c] = (1.0f - l) * current[c] + l * accumulatedSignal[c];
                 }
             }
         }
@@ -274,7 +273,7 @@ void Stages::filterInBands(const UnetTail& tail, const FeatureMap& embedding, co
     FeatureMap& output = sequence.output;
     FeatureMap& lastFeatures = sequence.lastFeatures;
     const int height = embedding.height(), width = embedding.width();
-    const int K = net.kernels, F = net.affinityFeatures, C = net.signalLayout().filteredChannels();
+    const int K = net.kernels, F = net.affinityFeatures, C = kSignalChannels;
     // The kernels that run, in order (all K, or the last alone), and how far their taps reach.
     std::vector<int> kernels, radii;
     for (int k = choice.allKernels ? 0 : K - 1; k < K; ++k) {

@@ -101,7 +101,7 @@ private:
     KernelMaps takeKernelMaps(int height, int width, int ringRows);
     void give(KernelMaps& maps);
     // Rows [begin, end) of the kernel parameters, each pixel's accumulation done as soon as its
-    // lambda is known, and the filtered part of the accumulated signal into `filterIn`.
+    // lambda is known, and a copy of the accumulated signal into `filterIn`.
     void parametersAndAccumulation(const UnetTail& tail, int begin, int end, KernelMaps& maps,
                                    const FeatureMap& embedding, const FeatureMap& signal, Accumulated& accumulated,
                                    FeatureMap& filterIn);
