@@ -290,7 +290,8 @@ TrainSummary runTraining(const TrainOptions& options) {
         if (!options.quiet) std::cout << text << std::endl;
     };
     // libtorch's CPU ops each open an OpenMP region; with sleeping workers every region pays a
-    // futex wake-up, and a step of our many small ops took twice as long (docs/TRAINING.md).
+    // futex wake-up, and a step of our many small ops is much slower (docs/TRAINING.md, "Threads
+    // that sleep between ops").
     const char* waitPolicy = std::getenv("OMP_WAIT_POLICY");
     if (options.threads > 1 && options.device == "cpu" && waitPolicy && std::string(waitPolicy) == "passive")
         say("note: OMP_WAIT_POLICY=passive makes CPU training steps about twice as slow; unset it for a training run");

@@ -39,8 +39,7 @@ using FloatArray = py::array_t<float, py::array::c_style>;
 thread_local std::optional<py::error_already_set> raisedDuringCall;
 
 // The denoiser's interrupt check: runs the Python signal handlers (only the main thread has any
-// to run) with the GIL taken for the moment. Without it, Ctrl-C waited for the frame (1.9 s at
-// 1080p).
+// to run) with the GIL taken for the moment. Without it, Ctrl-C waited for the whole frame.
 bool pythonSignalRaised() {
     py::gil_scoped_acquire gil;
     if (PyErr_CheckSignals() == 0) return false;

@@ -1,4 +1,4 @@
-// The error metrics of ALGORITHM.md section 10 (affinity/metrics.h) on small images whose
+// The error metrics of docs/BENCHMARK.md, "Metrics" (affinity/metrics.h), on small images whose
 // values are worked out by hand in the comments.
 #include <gtest/gtest.h>
 

@@ -234,7 +234,7 @@ TEST(Svgf, MovingPatternFollowsTheMotionVectors) {
         ignoredError.push_back(rmse(ignored.denoise(b), b, 1, width));
     }
     for (double e : exactError) EXPECT_LT(e, 1e-6);
-    EXPECT_LT(followedError[23], 0.1 * followedError[3]);  // measured 0.0009 vs 0.038
+    EXPECT_LT(followedError[23], 0.1 * followedError[3]);  // the blur fades well past this bound
     EXPECT_GT(ignoredError[23], 0.05);
 }
 

@@ -282,7 +282,7 @@ TEST(TrainingOptions, KeepingFewerSamplesThanAStepDrawsIsRejectedBeforeAnyWork) 
     EXPECT_FALSE(fs::exists("unused-out"));
 }
 
-// One to two minutes: render a tiny fixed dataset with the sample renderer, train the tiny
+// The slowest test: render a tiny fixed dataset with the sample renderer, train the tiny
 // preset on it for 80 steps, and require the validation loss to fall well below its starting value; then
 // the exported weights load in the core and match the torch model frame by frame.
 TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
@@ -307,7 +307,7 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     options.preset = "tiny";
     options.seed = 1;
     options.steps = 80;
-    options.maxMinutes = 4;  // a cap for very slow machines; normally the 80 steps take 40-90 s
+    options.maxMinutes = 4;  // a cap for very slow machines, far above the 80 steps' usual time
     options.threads = 1;     // no OpenMP spinning against other tests running beside it
     options.batch = 4;
     options.crop = 32;

@@ -63,8 +63,8 @@ public:
     // [row][x][s][feature]; the caller fills every band, then finishFrame() denoises them, bit
     // for bit what denoise() gives on the same samples. Once the embedding has read the bands,
     // their memory serves the later stages (bands are about the size of those stages' largest
-    // maps, so they can), and the samples add little to a frame's peak memory (1080p, 4 spp,
-    // small model: 1447 MiB against 1749 with the frame held by the caller). The bands are
+    // maps, so they can), and the samples add little to a frame's peak memory (the "lent" rows
+    // of results/speed_1080p_intel.md against the others). The bands are
     // the denoiser's again at finishFrame() or discardSamples() (which drops them); contents
     // start undefined. Throws affinity::Error, as addSamples() does, while other samples wait.
     std::vector<SampleBand> sampleBands(int width, int height, int spp);

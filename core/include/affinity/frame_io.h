@@ -25,7 +25,7 @@ using SampleBandsFor = std::function<std::vector<SampleBand>(int width, int heig
 SampleFrame readFrame(const std::string& path, const SampleBandsFor& bandsFor);
 // About how many bytes writeFrame() holds besides the frame itself while it writes a frame of
 // this size (OpenEXR's line buffers and compressors): for checking a run's memory before it
-// starts. Measured to within 10 % (a little above) with OpenEXR 3.1.
+// starts; an estimate a little above what OpenEXR 3.1 was measured to hold (frame_io.cpp).
 std::size_t frameWriteBufferBytes(int width, int height, int spp, bool withReference, ExrCompression compression);
 
 // "frame_0007.exr" for index 7: the name every sequence folder uses.

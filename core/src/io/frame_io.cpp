@@ -407,7 +407,7 @@ SampleFrame readFrameFile(const std::string& path, const SampleBandsFor* bandsFo
     checkExrHeader(path);  // before OpenEXR sizes any buffer from the header
     // No worker threads of OpenEXR's own: readRowsInParallel() decodes on OpenMP's threads,
     // each with its own file, so that one compression block per thread is buffered rather than
-    // two per OpenEXR thread in every file (about 45 MB each for a 1080p 4-spp PIZ frame).
+    // two per OpenEXR thread in every file (a block holds every channel of its rows).
     Imf::InputFile file(path.c_str(), 0);
     const Imf::Header& header = file.header();
 
@@ -488,8 +488,8 @@ void writeFrame(const std::string& path, const SampleFrame& frame, ExrCompressio
 
 std::size_t frameWriteBufferBytes(int width, int height, int spp, bool withReference, ExrCompression compression) {
     // OpenEXR's OutputFile keeps max(1, 2 x worker threads) line buffers, each one compression
-    // block of rows, with its compressor's buffers beside it: measured at 1024x1024, 16 spp,
-    // 2 threads, the whole is 2.3 (ZIP) and 2.4 (PIZ) blocks per line buffer, so 2.5 here.
+    // block of rows, with its compressor's buffers beside it: measured (1024x1024, 16 spp,
+    // 2 threads), the whole stays under 2.5 blocks per line buffer for ZIP and PIZ, so 2.5 here.
     // writeExr() sets the worker threads to OpenMP's count (useExrWorkerThreads) if none are set.
     const int threads = Imf::globalThreadCount() > 0 ? Imf::globalThreadCount() : omp_get_max_threads();
     const std::size_t lineBuffers = 2 * std::size_t(std::max(1, threads));

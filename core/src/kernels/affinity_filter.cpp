@@ -28,9 +28,9 @@ Vec8f load8(const float* p) {
 
 // Planar, zero-padded copies of image rows. The inputs are NHWC (a pixel's channels adjacent);
 // the kernels want each channel's row contiguous so that eight neighbouring pixels are one
-// vector load (indexing NHWC per channel makes the compiler gather: 100 ms against 22 ms per
-// pass, docs/METHOD.md section 12). Each row
-// is transposed once per thread into a ring of slots covering the rows a kernel reaches.
+// vector load (indexing NHWC per channel makes the compiler gather, several times slower:
+// docs/METHOD.md section 12). Each row is transposed once per thread into a ring of slots
+// covering the rows a kernel reaches.
 class PlanarRows {
 public:
     // `pad` zero columns on the left, `pad + kMaxStripPixels` on the right (a strip starting near

@@ -61,7 +61,7 @@ struct TailVector<V, true> {
 // cores that split a 512-bit FMA in two (Zen 4) a 24-channel block then costs three 256-bit
 // FMAs per pixel instead of four. Those accumulators live in 256-bit registers for the whole
 // loop: kept as 512-bit values, each FMA needed a move to re-zero lanes 8-15, an extra uop on
-// the FMA ports of cores with full-width units (Intel: 24-channel blocks 0.84x of AVX2's speed).
+// the FMA ports of cores with full-width units (on Intel, 24-channel blocks fell behind AVX2).
 template <class V, int M, int N, bool HalfTail>
 inline void accumulate(V (&acc)[M][N], const float* const (&pixel)[M], int count, const float* w) {
     using Tail = typename TailVector<V, HalfTail>::type;

@@ -43,8 +43,8 @@ PackedConv::PackedConv(const float* torchWeights, const float* bias, int outChan
         throw Error("convolution: the AVX-512 kernel was asked for, but this CPU or build has no AVX-512");
     // Blocks of two vectors while more than one vector's worth of channels remains, then one.
     // With AVX-512, 24 channels run as one block of 16 + 8 lanes in one pass over the input, the
-    // 8 at half width (conv_blocks.h): a separate AVX2 block of 8 was slower (small model 990
-    // vs 850 ms per 1080p frame) for its extra pass over the input.
+    // 8 at half width (conv_blocks.h): a separate AVX2 block of 8 made the whole frame slower
+    // for its extra pass over the input.
     const int lanes = vectorLanes();
     for (int first = 0; first < outChannels;) {
         const Block block{first, outChannels - first > lanes ? 2 : 1, 0};

@@ -2,8 +2,8 @@
 // Memory for feature maps: small ones from the heap, 64-byte aligned; large ones mapped
 // directly, aligned to 2 MiB and advised onto transparent huge pages (Linux), which cuts the TLB
 // misses of the stages that read across a whole map (warps, convolutions' row windows, the
-// affinity taps). Measured at 1080p, 4 spp, small model (bench_denoiser, 3 interleaved pairs):
-// whole frames 628-637 -> 612-619 ms, lent frames 634-661 -> 608-619 ms; peak memory +6-8 MiB.
+// affinity taps): whole and lent 1080p frames ran faster in bench_denoiser for a few MiB more
+// peak memory (docs/MODEL.md section 10, "Huge pages").
 #include <cstddef>
 
 namespace affinity {

