@@ -16,7 +16,7 @@ import bpy
 import numpy as np
 import pytest
 import scenes
-from conftest import CORE_AVAILABLE, ROOT
+from conftest import CORE_AVAILABLE, CORE_PATH, ROOT
 
 from affinity_denoiser import frame_claims, pipeline, render_engine, render_job, worker
 
@@ -142,7 +142,7 @@ _FARM_SCRIPT = textwrap.dedent("""
 def _farm_process(blend: str, *frame_range: int) -> subprocess.Popen[str]:
     environment = dict(os.environ)
     environment["PYTHONPATH"] = os.pathsep.join(
-        [os.path.join(ROOT, "blender_addon"), os.path.join(ROOT, "build", "python")]
+        [os.path.join(ROOT, "blender_addon"), CORE_PATH]
         + [p for p in environment.get("PYTHONPATH", "").split(os.pathsep) if p])
     return subprocess.Popen([sys.executable, "-c", _FARM_SCRIPT, blend, *map(str, frame_range)],
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
