@@ -102,7 +102,11 @@ BENCHMARK(spatialPass)
     ->ArgsProduct({{1, 2, 4}, {1, 2}})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime();
-BENCHMARK(temporalPass)->ArgNames({"dilation", "threads"})->ArgsProduct({{4}, {1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
+BENCHMARK(temporalPass)
+    ->ArgNames({"dilation", "threads"})
+    ->ArgsProduct({{4}, {1, 2}})
+    ->Unit(benchmark::kMillisecond)
+    ->UseRealTime();
 BENCHMARK(warpFeatures)->ArgNames({"threads"})->ArgsProduct({{1, 2}})->Unit(benchmark::kMillisecond)->UseRealTime();
 
 }  // namespace

@@ -115,9 +115,8 @@ void fmaPeak(benchmark::State& state, int lanes) {
         best.perCpu = std::max(best.perCpu, run.perCpu);
     }
     if (lanes == peakLanes()) updatePeak(threads, best);
-    state.counters["FLOPS"] = benchmark::Counter(threads * double(kSteps) * flopPerStep(lanes) *
-                                                     double(state.iterations()),
-                                                 benchmark::Counter::kIsRate);
+    state.counters["FLOPS"] = benchmark::Counter(
+        threads * double(kSteps) * flopPerStep(lanes) * double(state.iterations()), benchmark::Counter::kIsRate);
     state.counters["best_FLOPS"] = best.wall;
     state.counters["FLOP_per_cpu_s"] = best.perCpu;
 }
@@ -208,8 +207,7 @@ void ourUpsampledConv(benchmark::State& state, bool folded) {
     const ConvCase& c = convCase(in, out);
     peakFor(threads);
     FeatureMap coarse((kHeight + 1) / 2, (kWidth + 1) / 2, coarseChannels), skip(kHeight, kWidth, skipChannels);
-    for (FeatureMap* map : {&coarse, &skip})
-        std::copy(c.input.data(), c.input.data() + map->size(), map->data());
+    for (FeatureMap* map : {&coarse, &skip}) std::copy(c.input.data(), c.input.data() + map->size(), map->data());
     const Conv2d conv(c.weight.data(), c.bias.data(), out, in, 3, defaultConvIsa(), folded ? coarseChannels : 0);
     const ThreadScope scope(threads);
     FeatureMap output;
@@ -379,8 +377,8 @@ void registerAll() {
         addShapes(benchmark::RegisterBenchmark("Conv3x3/ours_avx512", ourConv, ConvIsa::Avx512, ConvForm::Direct));
     addShapes(benchmark::RegisterBenchmark("Conv3x3/ours_winograd_avx2", ourConv, ConvIsa::Avx2, ConvForm::Winograd));
     if (cpuHasAvx512())
-        addShapes(benchmark::RegisterBenchmark("Conv3x3/ours_winograd_avx512", ourConv, ConvIsa::Avx512,
-                                               ConvForm::Winograd));
+        addShapes(
+            benchmark::RegisterBenchmark("Conv3x3/ours_winograd_avx512", ourConv, ConvIsa::Avx512, ConvForm::Winograd));
     for (const bool folded : {false, true}) {
         auto* upsampled = benchmark::RegisterBenchmark(
             folded ? "Conv3x3Upsampled/ours_folded" : "Conv3x3Upsampled/ours", ourUpsampledConv, folded);

@@ -121,12 +121,15 @@ double median(std::vector<double> values) {
 
 int run(const Options& options) {
     if (options.threads > 0) omp_set_num_threads(options.threads);
-    Model model = options.model.empty() ? Model::builtIn(options.precision)
-                                        : Model::fromFile(options.model, options.precision);
+    Model model =
+        options.model.empty() ? Model::builtIn(options.precision) : Model::fromFile(options.model, options.precision);
     // Streaming holds one sample and feeds it spp times (the values do not matter for speed); a
     // lent frame's samples are made in the denoiser's buffer before each frame, untimed.
-    const SampleFrame frame =
-        randomFrame(options.width, options.height, options.stream ? 1 : options.lend ? 0 : options.spp, 1);
+    const SampleFrame frame = randomFrame(options.width, options.height,
+                                          options.stream ? 1
+                                          : options.lend ? 0
+                                                         : options.spp,
+                                          1);
     Denoiser denoiser(model);
     std::vector<double> wall, cpu;
     std::map<std::string, std::vector<double>> stages;
@@ -136,7 +139,8 @@ int run(const Options& options) {
         DenoiseReport report;
         if (options.lend)
             for (const SampleBand& band : denoiser.sampleBands(options.width, options.height, options.spp))
-                fillRandomSamples(band.samples, options.width, band.rows, options.spp, 1u + std::uint32_t(band.firstRow));
+                fillRandomSamples(band.samples, options.width, band.rows, options.spp,
+                                  1u + std::uint32_t(band.firstRow));
         const double cpuStart = cpuSeconds();
         const auto start = std::chrono::steady_clock::now();
         std::vector<float> output;
@@ -159,22 +163,23 @@ int run(const Options& options) {
             stages[stage].push_back(stageMs);
         }
     }
-    const double inputBytes = double(options.width) * options.height * (options.stream ? 1 : options.spp) *
-                              kFeatureCount * sizeof(float);
+    const double inputBytes =
+        double(options.width) * options.height * (options.stream ? 1 : options.spp) * kFeatureCount * sizeof(float);
     rusage usage{};
     getrusage(RUSAGE_SELF, &usage);
     const double pixels = double(options.width) * options.height;
-    std::printf("{\"model\": \"%s\", \"parameters\": %lld, \"kflop_per_pixel\": %.1f, \"size\": \"%dx%d\", "
-                "\"spp\": %d, \"threads\": %d, \"timed_frames\": %zu, \"ms_per_frame\": %.1f, "
-                "\"ms_per_megapixel\": %.1f, \"cpu_seconds_per_frame\": %.3f, \"gflops_per_cpu_second\": %.1f, "
-                "\"peak_rss_mb\": %.0f, \"buffer_mb\": %.0f, \"input_frame_mb\": %.0f, \"streamed\": %s, \"lent\": %s, "
-                "\"precision\": \"%s\", \"stage_ms\": {",
-                model.source().c_str(), static_cast<long long>(model.parameterCount()),
-                model.flopsPerPixel(options.spp) / 1000.0, options.width, options.height, options.spp,
-                omp_get_max_threads(), wall.size(), median(wall), median(wall) / (pixels / 1e6), median(cpu),
-                model.flopsPerPixel(options.spp) * pixels / median(cpu) / 1e9, double(usage.ru_maxrss) / 1024.0,
-                double(bufferBytes) / (1024.0 * 1024.0), inputBytes / (1024.0 * 1024.0), options.stream ? "true" : "false", options.lend ? "true" : "false",
-                precisionName(model.precision()));
+    std::printf(
+        "{\"model\": \"%s\", \"parameters\": %lld, \"kflop_per_pixel\": %.1f, \"size\": \"%dx%d\", "
+        "\"spp\": %d, \"threads\": %d, \"timed_frames\": %zu, \"ms_per_frame\": %.1f, "
+        "\"ms_per_megapixel\": %.1f, \"cpu_seconds_per_frame\": %.3f, \"gflops_per_cpu_second\": %.1f, "
+        "\"peak_rss_mb\": %.0f, \"buffer_mb\": %.0f, \"input_frame_mb\": %.0f, \"streamed\": %s, \"lent\": %s, "
+        "\"precision\": \"%s\", \"stage_ms\": {",
+        model.source().c_str(), static_cast<long long>(model.parameterCount()),
+        model.flopsPerPixel(options.spp) / 1000.0, options.width, options.height, options.spp, omp_get_max_threads(),
+        wall.size(), median(wall), median(wall) / (pixels / 1e6), median(cpu),
+        model.flopsPerPixel(options.spp) * pixels / median(cpu) / 1e9, double(usage.ru_maxrss) / 1024.0,
+        double(bufferBytes) / (1024.0 * 1024.0), inputBytes / (1024.0 * 1024.0), options.stream ? "true" : "false",
+        options.lend ? "true" : "false", precisionName(model.precision()));
     for (std::size_t i = 0; i < stageOrder.size(); ++i)
         std::printf("%s\"%s\": %.1f", i ? ", " : "", stageOrder[i].c_str(), median(stages[stageOrder[i]]));
     std::printf("}}\n");

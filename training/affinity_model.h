@@ -65,15 +65,15 @@ struct RecurrentState {
 
 // One frame's result, with intermediates for debugging and for loss terms.
 struct FrameResult {
-    torch::Tensor output;              // O_t [B, 3, H, W]
-    torch::Tensor noisy;               // L_t [B, 3, H, W]
-    torch::Tensor embedding;           // e_t [B, E, H, W]
-    torch::Tensor accumulated;         // L̄_t [B, 3, H, W]
-    torch::Tensor head;                // U-Net output [B, P, H, W]
-    torch::Tensor lambda;              // [B, 1, H, W]
-    torch::Tensor temporalBandwidth;   // b [B, 1, H, W]
-    std::vector<KernelParams> kernels; // K entries
-    torch::Tensor invalidCount;        // [B] int64: sanitised radiance values
+    torch::Tensor output;               // O_t [B, 3, H, W]
+    torch::Tensor noisy;                // L_t [B, 3, H, W]
+    torch::Tensor embedding;            // e_t [B, E, H, W]
+    torch::Tensor accumulated;          // L̄_t [B, 3, H, W]
+    torch::Tensor head;                 // U-Net output [B, P, H, W]
+    torch::Tensor lambda;               // [B, 1, H, W]
+    torch::Tensor temporalBandwidth;    // b [B, 1, H, W]
+    std::vector<KernelParams> kernels;  // K entries
+    torch::Tensor invalidCount;         // [B] int64: sanitised radiance values
 };
 
 class AffinityModelImpl : public torch::nn::Module {

@@ -22,8 +22,8 @@ struct WeightedSum {
 };
 
 // The (H, W) window of a zero-padded tensor shifted by (dy, dx) from its centre.
-at::Tensor shifted(const at::Tensor& padded, std::int64_t pad, std::int64_t dy, std::int64_t dx,
-                   std::int64_t height, std::int64_t width) {
+at::Tensor shifted(const at::Tensor& padded, std::int64_t pad, std::int64_t dy, std::int64_t dx, std::int64_t height,
+                   std::int64_t width) {
     return padded.narrow(2, pad + dy, height).narrow(3, pad + dx, width);
 }
 
@@ -32,7 +32,8 @@ at::Tensor squaredDistance(const at::Tensor& a, const at::Tensor& b) { return (a
 // Section 6's taps. Out-of-image taps read zero-padded values and a zero `inside` mask, so they
 // add nothing to either sum (and nothing to any gradient).
 WeightedSum spatialSum(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation) {
-    if (tapSize < 1 || tapSize % 2 == 0) throw Error("affinity filter: tap size " + std::to_string(tapSize) + " is not odd");
+    if (tapSize < 1 || tapSize % 2 == 0)
+        throw Error("affinity filter: tap size " + std::to_string(tapSize) + " is not odd");
     const std::int64_t height = radiance.size(2), width = radiance.size(3);
     const std::int64_t radius = (tapSize - 1) / 2;
     const std::int64_t pad = radius * dilation;
@@ -71,15 +72,16 @@ void checkImage(const at::Tensor& tensor, const char* what, std::int64_t channel
 at::Tensor exposureOf(const at::Tensor& cleanRadiance) {
     const std::int64_t spp = cleanRadiance.size(1);
     const std::int64_t height = cleanRadiance.size(3), width = cleanRadiance.size(4);
-    const at::Tensor rgb = (cleanRadiance.narrow(2, 0, 3) + cleanRadiance.narrow(2, 3, 3)).to(at::kDouble).sum(1) /
-                           double(spp);
+    const at::Tensor rgb =
+        (cleanRadiance.narrow(2, 0, 3) + cleanRadiance.narrow(2, 3, 3)).to(at::kDouble).sum(1) / double(spp);
     const at::Tensor luminance = 0.2126 * rgb.select(1, 0) + 0.7152 * rgb.select(1, 1) + 0.0722 * rgb.select(1, 2);
     // The rows the depth scale reads; squares of kExposureBin pixels are kExposureBin / step of them.
     const at::Tensor rows = luminance.slice(1, 0, height, kDepthScaleRowStep);
     const std::int64_t rowsPerSquare = kExposureBin / kDepthScaleRowStep;
     const std::int64_t squaresY = (rows.size(1) + rowsPerSquare - 1) / rowsPerSquare;
     const std::int64_t squaresX = (width + kExposureBin - 1) / kExposureBin;
-    const std::vector<std::int64_t> padding{0, squaresX * kExposureBin - width, 0, squaresY * rowsPerSquare - rows.size(1)};
+    const std::vector<std::int64_t> padding{0, squaresX * kExposureBin - width, 0,
+                                            squaresY * rowsPerSquare - rows.size(1)};
     auto squareSums = [&](const at::Tensor& values) {  // [B, R, W] -> [B, squares]
         return at::constant_pad_nd(values, padding, 0.0)
             .view({values.size(0), squaresY, rowsPerSquare, squaresX, kExposureBin})
@@ -89,12 +91,12 @@ at::Tensor exposureOf(const at::Tensor& cleanRadiance) {
     const at::Tensor means = squareSums(rows) / squareSums(at::ones_like(rows.narrow(0, 0, 1)));
     const at::Tensor mean = means.mean(1, true);
     const at::Tensor lit = means > kExposureDarkBin * mean;
-    const at::Tensor logMean = at::where(lit, at::log(at::where(lit, means, 1.0)), 0.0).sum(1) /
-                               lit.sum(1).clamp_min(1).to(at::kDouble);
+    const at::Tensor logMean =
+        at::where(lit, at::log(at::where(lit, means, 1.0)), 0.0).sum(1) / lit.sum(1).clamp_min(1).to(at::kDouble);
     const at::Tensor found = (mean.squeeze(1) > 0).logical_and(at::isfinite(mean.squeeze(1)));
     const at::Tensor key = at::exp(logMean);
-    const at::Tensor factor =
-        at::where(key < kExposureKeyLow, kExposureKeyLow / key, at::where(key > kExposureKeyHigh, kExposureKeyHigh / key, 1.0));
+    const at::Tensor factor = at::where(key < kExposureKeyLow, kExposureKeyLow / key,
+                                        at::where(key > kExposureKeyHigh, kExposureKeyHigh / key, 1.0));
     return at::where(found, factor, 0.0);  // exposureForKey (features.h)
 }
 
@@ -123,8 +125,9 @@ PreparedInputs prepareInputs(const at::Tensor& samples, const at::Tensor& sequen
     const at::Tensor depthSum = at::where(hit, meanRows.to(at::kDouble), 0.0).sum(perFrame);
     const at::Tensor hitCount = hit.sum(perFrame).to(at::kDouble);
     const at::Tensor any = hitCount > 0;
-    const at::Tensor scale =
-        at::where(any, hitCount / at::where(any, depthSum, 1.0), 0.0).to(samples.scalar_type()).view({batch, 1, 1, 1, 1});
+    const at::Tensor scale = at::where(any, hitCount / at::where(any, depthSum, 1.0), 0.0)
+                                 .to(samples.scalar_type())
+                                 .view({batch, 1, 1, 1, 1});
 
     // The exposure normalisation: the sequence's, or this frame's where it has none yet (the key
     // is computed only then: every frame of a training window but the first has one).
@@ -169,7 +172,8 @@ at::Tensor warpBilinearUnfused(const at::Tensor& previous, const at::Tensor& mot
 
     const at::Tensor flat = previous.reshape({batch, channels, height * width});
     auto tap = [&](const at::Tensor& y, const at::Tensor& x) {
-        const at::Tensor index = (y * width + x).view({batch, 1, height * width}).expand({batch, channels, height * width});
+        const at::Tensor index =
+            (y * width + x).view({batch, 1, height * width}).expand({batch, channels, height * width});
         return flat.gather(2, index).view({batch, channels, height, width});
     };
     const at::Tensor top = tap(y0, x0) * (1 - fx) + tap(y0, x1) * fx;
@@ -197,7 +201,8 @@ at::Tensor warpCatmullRomUnfused(const at::Tensor& previous, const at::Tensor& m
     const at::Tensor flat = previous.reshape({batch, channels, height * width});
     auto tap = [&](int j, int i) {
         const at::Tensor y = (iy + (j - 1)).clamp(0, height - 1), x = (ix + (i - 1)).clamp(0, width - 1);
-        const at::Tensor index = (y * width + x).view({batch, 1, height * width}).expand({batch, channels, height * width});
+        const at::Tensor index =
+            (y * width + x).view({batch, 1, height * width}).expand({batch, channels, height * width});
         return flat.gather(2, index).view({batch, channels, height, width});
     };
     at::Tensor sum;
@@ -263,11 +268,12 @@ at::Tensor affinityFilter(const at::Tensor& radiance, const KernelParams& kernel
     return affinityFilterUnfused(radiance, kernel, tapSize, dilation, nullptr);
 }
 
-at::Tensor affinityFilterTemporal(const at::Tensor& radiance, const KernelParams& kernel, int tapSize,
-                                  int dilation, const TemporalTaps& temporal) {
+at::Tensor affinityFilterTemporal(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                                  const TemporalTaps& temporal) {
     checkImage(radiance, "the filtered signal", 0);
     checkImage(temporal.output, "the warped output", radiance.size(1));
-    if (fusedAffinityFilterApplies(radiance)) return fusedAffinityFilter(radiance, kernel, tapSize, dilation, &temporal);
+    if (fusedAffinityFilterApplies(radiance))
+        return fusedAffinityFilter(radiance, kernel, tapSize, dilation, &temporal);
     return affinityFilterUnfused(radiance, kernel, tapSize, dilation, &temporal);
 }
 

@@ -8,10 +8,10 @@ namespace affinity::train {
 
 // The per-sample network input (section 1) and the noisy radiance L_t of a batch of frames.
 struct PreparedInputs {
-    at::Tensor networkInput;    // [B, S, 18, H, W]
-    at::Tensor radiance;        // [B, 3, H, W]: mean over samples of the sanitised radiance
-    at::Tensor invalidCount;    // [B] int64: radiance values that were non-finite or negative
-    at::Tensor exposure;        // [B]: the exposure the radiance was scaled by (0: black, scaled by 1)
+    at::Tensor networkInput;  // [B, S, 18, H, W]
+    at::Tensor radiance;      // [B, 3, H, W]: mean over samples of the sanitised radiance
+    at::Tensor invalidCount;  // [B] int64: radiance values that were non-finite or negative
+    at::Tensor exposure;      // [B]: the exposure the radiance was scaled by (0: black, scaled by 1)
 };
 // samples: [B, S, 18, H, W] raw features. depthScale is computed per batch element (frame), the
 // exposure normalisation too unless `exposure` ([B], a sequence's) is given; where that is 0 (the
@@ -20,7 +20,6 @@ PreparedInputs prepareInputs(const at::Tensor& samples, const at::Tensor& exposu
 // The core's exposureOf (core/src/pipeline/exposure.h) per batch element of sanitised radiance
 // [B, S, 6, H, W] (diffuse then specular, non-finite and negative values already 0): [B] in double.
 at::Tensor exposureOf(const at::Tensor& cleanRadiance);
-
 
 // out(p) = bilinear lookup of `previous` at (x + motion_x, y + motion_y), pixel centres at
 // integer coordinates, taps outside the image clamped to the border. motion: [B, 2, H, W]
@@ -75,8 +74,8 @@ inline constexpr double kAffinityEpsilon = 1e-8;
 // fused_affinity_filter.h, elsewhere affinityFilterUnfused.
 at::Tensor affinityFilter(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation);
 // The last kernel (section 7): the spatial taps plus 3x3 temporal taps in one normalised sum.
-at::Tensor affinityFilterTemporal(const at::Tensor& radiance, const KernelParams& kernel, int tapSize,
-                                  int dilation, const TemporalTaps& temporal);
+at::Tensor affinityFilterTemporal(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation,
+                                  const TemporalTaps& temporal);
 // The same kernels in ATen ops (about ten per tap) on any device, with temporal taps where
 // `temporal` is given: what runs off the CPU, and what the fused op is tested against.
 at::Tensor affinityFilterUnfused(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation,

@@ -129,13 +129,14 @@ std::vector<Tap> temporalTaps() {
 // Forward of row y: numerator and denominator over the centre, the spatial and the temporal
 // taps; out = numerator / (denominator + eps), and that denominator is kept for the backward.
 template <typename T>
-void forwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& spatial, int y, T* out,
-                T* denominator, RowScratch<T>& scratch) {
+void forwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& spatial, int y, T* out, T* denominator,
+                RowScratch<T>& scratch) {
     const std::int64_t plane = s.plane(), row = std::int64_t(y) * s.width;
     T* D = denominator + row;
     for (int x = 0; x < s.width; ++x) D[x] = in.centre[row + x];
     for (int c = 0; c < s.channels; ++c)
-        for (int x = 0; x < s.width; ++x) out[c * plane + row + x] = in.centre[row + x] * in.radiance[c * plane + row + x];
+        for (int x = 0; x < s.width; ++x)
+            out[c * plane + row + x] = in.centre[row + x] * in.radiance[c * plane + row + x];
     // Adds the taps of (values, their features, their validity: null for the spatial taps) at one
     // offset.
     auto addTap = [&](const Tap& tap, const T* values, const T* tapFeatures, const T* tapWeight, const T* bandwidth) {
@@ -156,7 +157,8 @@ void forwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& sp
     };
     for (const Tap& tap : spatial) addTap(tap, in.radiance, in.features, nullptr, in.bandwidth);
     if (in.tBandwidth)
-        for (const Tap& tap : temporalTaps()) addTap(tap, in.warpedOutput, in.warpedFeatures, in.warpedValid, in.tBandwidth);
+        for (const Tap& tap : temporalTaps())
+            addTap(tap, in.warpedOutput, in.warpedFeatures, in.warpedValid, in.tBandwidth);
     for (int x = 0; x < s.width; ++x) D[x] += T(kAffinityEpsilon);
     for (int c = 0; c < s.channels; ++c)
         for (int x = 0; x < s.width; ++x) out[c * plane + row + x] /= D[x];
@@ -180,8 +182,8 @@ struct Gradients {
 // features), the affinity recomputed for each pair. With gN = dL/dout / Z and
 // gD = -sum_c gN_c out_c (Z the denominator), a tap's weight W gets G = gD + sum_c gN_c v_c(q).
 template <typename T>
-void backwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& spatial, const T* gN, const T* gD,
-                 int y, const Gradients<T>& grad, RowScratch<T>& scratch) {
+void backwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& spatial, const T* gN, const T* gD, int y,
+                 const Gradients<T>& grad, RowScratch<T>& scratch) {
     const std::int64_t plane = s.plane(), row = std::int64_t(y) * s.width;
     const int C = s.channels, F = s.features;
     for (int x = 0; x < s.width; ++x) {
@@ -200,8 +202,8 @@ void backwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& s
             for (int k = 0; k < n; ++k) g[k] += gN[c * plane + p + k] * values[c * plane + q + k];
     };
     // This row as the filtered pixels p of the taps q = p + offset.
-    auto asFiltered = [&](const Tap& tap, const T* values, const T* tapFeatures, const T* tapWeight,
-                          const T* bandwidth, T* bandwidthGradient) {
+    auto asFiltered = [&](const Tap& tap, const T* values, const T* tapFeatures, const T* tapWeight, const T* bandwidth,
+                          T* bandwidthGradient) {
         const TapSpan sp = span(tap, y, s.height, s.width);
         if (!sp.inside) return;
         const int n = sp.x1 - sp.x0;
@@ -230,7 +232,8 @@ void backwardRow(const Element<T>& in, const Shape& s, const std::vector<Tap>& s
         tapGradient(p, values, q, n);
         for (int c = 0; c < C; ++c)
             for (int k = 0; k < n; ++k)
-                valueGradient[c * plane + q + k] += e[k] * (tapWeight ? tapWeight[q + k] : T(1)) * gN[c * plane + p + k];
+                valueGradient[c * plane + q + k] +=
+                    e[k] * (tapWeight ? tapWeight[q + k] : T(1)) * gN[c * plane + p + k];
         for (int k = 0; k < n; ++k) {
             const T a = bandwidth[p + k];
             g[k] *= e[k] * (tapWeight ? tapWeight[q + k] : T(1)) * T(-2) * a * a;  // times (f(q) - f(p))
@@ -338,7 +341,8 @@ void checkMatches(const at::Tensor& tensor, const at::Tensor& radiance, std::int
     if (tensor.dim() != 4 || tensor.size(0) != radiance.size(0) || tensor.size(1) != channels ||
         tensor.size(2) != radiance.size(2) || tensor.size(3) != radiance.size(3) ||
         tensor.scalar_type() != radiance.scalar_type() || tensor.device() != radiance.device())
-        throw Error(std::string("affinity filter: ") + what + " does not match the filtered signal's batch, size, dtype or device");
+        throw Error(std::string("affinity filter: ") + what +
+                    " does not match the filtered signal's batch, size, dtype or device");
 }
 
 }  // namespace
@@ -350,7 +354,8 @@ bool fusedAffinityFilterApplies(const at::Tensor& radiance) {
 
 at::Tensor fusedAffinityFilter(const at::Tensor& radiance, const KernelParams& kernel, int tapSize, int dilation,
                                const TemporalTaps* temporal) {
-    if (tapSize < 1 || tapSize % 2 == 0) throw Error("affinity filter: tap size " + std::to_string(tapSize) + " is not odd");
+    if (tapSize < 1 || tapSize % 2 == 0)
+        throw Error("affinity filter: tap size " + std::to_string(tapSize) + " is not odd");
     if (dilation < 1) throw Error("affinity filter: dilation " + std::to_string(dilation) + " is below 1");
     if (radiance.dim() != 4) throw Error("affinity filter: the filtered signal must be [B, C, H, W]");
     if (!kernel.features.defined() || kernel.features.dim() != 4)

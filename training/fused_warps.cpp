@@ -237,12 +237,14 @@ bool fusedWarpApplies(const at::Tensor& previous, const at::Tensor& motion) {
 }
 
 at::Tensor fusedWarpBilinear(const at::Tensor& previous, const at::Tensor& motion) {
-    if (!fusedWarpApplies(previous, motion)) throw Error("fused warp: needs CPU float or double [B, C, H, W] and [B, 2, H, W] motion without grad");
+    if (!fusedWarpApplies(previous, motion))
+        throw Error("fused warp: needs CPU float or double [B, C, H, W] and [B, 2, H, W] motion without grad");
     return FusedWarp<Kind::Bilinear>::apply(previous, motion);
 }
 
 at::Tensor fusedWarpCatmullRom(const at::Tensor& previous, const at::Tensor& motion) {
-    if (!fusedWarpApplies(previous, motion)) throw Error("fused warp: needs CPU float or double [B, C, H, W] and [B, 2, H, W] motion without grad");
+    if (!fusedWarpApplies(previous, motion))
+        throw Error("fused warp: needs CPU float or double [B, C, H, W] and [B, 2, H, W] motion without grad");
     return FusedWarp<Kind::CatmullRom>::apply(previous, motion);
 }
 

@@ -169,8 +169,7 @@ ModelConfig configFromWeights(const Weights& weights) {
     auto flag = [&](const char* name) {
         if (!weights.has(name)) return false;
         const int value = readConfigInt(weights, name);
-        if (value != 0 && value != 1)
-            throw Error(source + ": " + name + " is " + str(value) + ", expected 0 or 1");
+        if (value != 0 && value != 1) throw Error(source + ": " + name + " is " + str(value) + ", expected 0 or 1");
         return value == 1;
     };
     // Switches of variants that lost and were removed (docs/TRAINING.md, "Tried and lost"): a file

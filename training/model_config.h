@@ -19,13 +19,13 @@ struct ConvStackSpec {
 
 // A model's sizes.
 struct ModelConfig {
-    std::vector<int> embedWidths;         // output width of each embedding layer; the last is E
-    std::vector<ConvStackSpec> encoder;   // level 0 (full resolution) first
+    std::vector<int> embedWidths;        // output width of each embedding layer; the last is E
+    std::vector<ConvStackSpec> encoder;  // level 0 (full resolution) first
     ConvStackSpec bottleneck;
-    std::vector<ConvStackSpec> decoder;   // decoder[l] runs at level l; as many as encoder levels
-    int kernels = 3;            // K: dilated affinity kernels, the last one also temporal
-    int affinityFeatures = 8;   // F: affinity features per kernel
-    int kernelSize = 5;         // T: spatial taps per side (odd)
+    std::vector<ConvStackSpec> decoder;  // decoder[l] runs at level l; as many as encoder levels
+    int kernels = 3;                     // K: dilated affinity kernels, the last one also temporal
+    int affinityFeatures = 8;            // F: affinity features per kernel
+    int kernelSize = 5;                  // T: spatial taps per side (odd)
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
     // Channels the moving average accumulates and the kernels filter: RGB radiance.

@@ -114,8 +114,8 @@ void embedTrainedWeights(const TensorView& trained, const std::vector<InputRun>&
         float* row = wide.floats.data() + o * inAfter * taps;
         std::fill(row, row + inAfter * taps, 0.0f);
         for (const InputRun& run : inputs)
-            std::copy(weights + (o * inBefore + run.from) * taps, weights + (o * inBefore + run.from + run.count) * taps,
-                      row + run.to * taps);
+            std::copy(weights + (o * inBefore + run.from) * taps,
+                      weights + (o * inBefore + run.from + run.count) * taps, row + run.to * taps);
     }
 }
 

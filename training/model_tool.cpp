@@ -65,8 +65,8 @@ int runInit(const std::vector<std::string>& args) {
     if (out.empty()) throw Error("init: --out FILE is required");
     const ModelConfig config = presetConfig(preset);
     writeInitialModel(config, seed, out);
-    std::cout << "wrote " << out << ": preset " << preset << ", seed " << seed << ", "
-              << parameterCount(config) << " parameters\n";
+    std::cout << "wrote " << out << ": preset " << preset << ", seed " << seed << ", " << parameterCount(config)
+              << " parameters\n";
     return 0;
 }
 
@@ -87,9 +87,8 @@ int runDescribe(const std::vector<std::string>& args) {
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];
-    std::snprintf(line, sizeof line,
-                  "  FLOPs / pixel  embedding %.0f per sample, U-Net %.0f, filters %.0f\n", flops.embeddingPerSample,
-                  flops.unetPerPixel, flops.filterPerPixel);
+    std::snprintf(line, sizeof line, "  FLOPs / pixel  embedding %.0f per sample, U-Net %.0f, filters %.0f\n",
+                  flops.embeddingPerSample, flops.unetPerPixel, flops.filterPerPixel);
     std::cout << line;
     for (int spp : {1, 2, 4, 8}) {
         std::snprintf(line, sizeof line, "                 total at %d spp: %.0f (%.3f GFLOP per 1920x1080 frame)\n",

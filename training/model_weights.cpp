@@ -29,9 +29,7 @@ std::vector<NamedTensor> modelTensors(const AffinityModel& model) {
     return tensors;
 }
 
-void exportWeights(const AffinityModel& model, const std::string& path) {
-    writeWeightsFile(path, modelTensors(model));
-}
+void exportWeights(const AffinityModel& model, const std::string& path) { writeWeightsFile(path, modelTensors(model)); }
 
 AffinityModel modelFromWeights(const Weights& weights) {
     AffinityModel model(configFromWeights(weights));

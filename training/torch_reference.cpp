@@ -18,7 +18,8 @@ FrameInput toTensors(const SampleFrame& frame) {
         return torch::from_blob(const_cast<float*>(data.data()), shape, torch::kFloat);
     };
     FrameInput input;
-    input.samples = view(frame.samples(), {height, width, spp, kFeatureCount}).permute({2, 3, 0, 1}).unsqueeze(0).clone();
+    input.samples =
+        view(frame.samples(), {height, width, spp, kFeatureCount}).permute({2, 3, 0, 1}).unsqueeze(0).clone();
     input.motion = view(frame.motion(), {height, width, 2}).permute({2, 0, 1}).unsqueeze(0).clone();
     input.valid = view(frame.valid(), {1, 1, height, width}).clone();
     return input;

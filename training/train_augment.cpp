@@ -51,7 +51,8 @@ void applyAugmentation(Clip& clip, const Augmentation& augmentation) {
     const at::TensorOptions indexOptions = at::TensorOptions().dtype(at::kLong).device(clip.samples.device());
     clip.samples = clip.samples.index_select(2, at::tensor(channels, indexOptions));
     clip.reference = clip.reference.index_select(
-        1, at::tensor(std::vector<std::int64_t>(augmentation.colours.begin(), augmentation.colours.end()), indexOptions));
+        1,
+        at::tensor(std::vector<std::int64_t>(augmentation.colours.begin(), augmentation.colours.end()), indexOptions));
 }
 
 }  // namespace affinity::train

@@ -15,10 +15,12 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference) {
 
 at::Tensor cellMeans(const at::Tensor& image, int cell) {
     if (cell < 1) throw Error("cellMeans: the cell size must be at least 1");
-    const std::int64_t padBottom = (cell - image.size(2) % cell) % cell, padRight = (cell - image.size(3) % cell) % cell;
+    const std::int64_t padBottom = (cell - image.size(2) % cell) % cell,
+                       padRight = (cell - image.size(3) % cell) % cell;
     const std::vector<std::int64_t> padding{0, padRight, 0, padBottom};
     const at::Tensor sums = at::avg_pool2d(at::constant_pad_nd(image, padding, 0.0), cell);
-    const at::Tensor counts = at::avg_pool2d(at::constant_pad_nd(at::ones_like(image.narrow(1, 0, 1)), padding, 0.0), cell);
+    const at::Tensor counts =
+        at::avg_pool2d(at::constant_pad_nd(at::ones_like(image.narrow(1, 0, 1)), padding, 0.0), cell);
     return sums / counts;
 }
 
@@ -35,7 +37,8 @@ struct TemporalPair {
         return (values * mask).sum(dims) / counted;
     }
     at::Tensor smape() const {
-        const at::Tensor error = (change - referenceChange).abs() / (change.abs() + referenceChange.abs() + kSmapeEpsilon);
+        const at::Tensor error =
+            (change - referenceChange).abs() / (change.abs() + referenceChange.abs() + kSmapeEpsilon);
         return maskedMean(error, {0, 1, 2, 3});
     }
     // mean |dt O - dt O*| / (mean |O*| + 0.01), the means taken per crop of the batch
@@ -79,7 +82,8 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     for (std::size_t t = 0; t < frames; ++t) {
         spatial = spatial + smapeLoss(outputs[t], references[t]);
         if (weights.coarse != 0) {
-            coarse = coarse + smapeLoss(cellMeans(outputs[t], weights.coarseCell), cellMeans(references[t], weights.coarseCell));
+            coarse = coarse +
+                     smapeLoss(cellMeans(outputs[t], weights.coarseCell), cellMeans(references[t], weights.coarseCell));
         }
         if (t > 0) {
             TemporalPair pair;

@@ -23,7 +23,6 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
 // partial block at the bottom or right edge averaged over the pixels it has.
 at::Tensor cellMeans(const at::Tensor& image, int cell);
 
-
 // Frame t's motion [B, 2, H, W] (pixels into frame t-1) and history validity [B, 1, H, W].
 struct FrameMotion {
     at::Tensor motion;
@@ -36,7 +35,7 @@ struct LossTerms {
     at::Tensor temporal;          // SMAPE(dt O, dt O*) averaged over frame pairs (0 for one frame)
     at::Tensor absoluteTemporal;  // the absolute temporal term averaged over frame pairs
     at::Tensor coarse;            // SMAPE of the cell means averaged over frames
-    at::Tensor regulariser;  // sum_k E[(a^k)^2] + E[b^2], averaged over frames
+    at::Tensor regulariser;       // sum_k E[(a^k)^2] + E[b^2], averaged over frames
 };
 
 // outputs[t], references[t]: [B, 3, H, W]. bandwidths[t]: the K bandwidths a^k and the temporal

@@ -83,7 +83,8 @@ int main(int argc, char** argv) {
                 } catch (const std::exception&) {
                     used = 0;
                 }
-                if (used != value.size() || value.empty()) throw affinity::Error(flag + " '" + value + "' is not an integer");
+                if (used != value.size() || value.empty())
+                    throw affinity::Error(flag + " '" + value + "' is not an integer");
                 return parsed;
             };
             auto real = [&] {
@@ -94,39 +95,70 @@ int main(int argc, char** argv) {
                 } catch (const std::exception&) {
                     used = 0;
                 }
-                if (used != value.size() || value.empty()) throw affinity::Error(flag + " '" + value + "' is not a number");
+                if (used != value.size() || value.empty())
+                    throw affinity::Error(flag + " '" + value + "' is not a number");
                 return parsed;
             };
-            if (flag == "--data") data = value;
-            else if (flag == "--train") options.trainDir = value;
-            else if (flag == "--val") options.valDir = value, valGiven = true;
-            else if (flag == "--out") options.outDir = value;
-            else if (flag == "--preset") options.preset = value;
-            else if (flag == "--init") options.initWeights = value;
-            else if (flag == "--steps") options.steps = integer();
-            else if (flag == "--minutes") options.maxMinutes = real();
-            else if (flag == "--batch") options.batch = integer();
-            else if (flag == "--crop") options.crop = integer();
-            else if (flag == "--frames") options.frames = integer();
-            else if (flag == "--min-spp") options.minSpp = integer();
-            else if (flag == "--max-spp") options.maxSpp = integer();
-            else if (flag == "--val-spp") options.valSpp = integer();
-            else if (flag == "--lr") options.learningRate = real();
-            else if (flag == "--lr-half-life") options.lrHalfLife = integer();
-            else if (flag == "--clip") options.clipNorm = real();
-            else if (flag == "--temporal-weight") options.loss.temporal = real();
-            else if (flag == "--absolute-temporal-weight") options.loss.absoluteTemporal = real();
-            else if (flag == "--coarse-weight") options.loss.coarse = real();
-            else if (flag == "--coarse-cell") options.loss.coarseCell = integer();
-            else if (flag == "--val-every") options.valEvery = integer();
-            else if (flag == "--checkpoint-every") options.checkpointEvery = integer();
-            else if (flag == "--threads") options.threads = integer();
-            else if (flag == "--device") options.device = value;
-            else if (flag == "--seed") options.seed = std::uint64_t(integer());
-            else if (flag == "--max-sequences") options.maxSequences = integer();
-            else if (flag == "--keep-spp") options.keepSpp = integer();
-            else if (flag == "--export") exportPath = value;
-            else throw affinity::Error("unknown option " + flag);
+            if (flag == "--data")
+                data = value;
+            else if (flag == "--train")
+                options.trainDir = value;
+            else if (flag == "--val")
+                options.valDir = value, valGiven = true;
+            else if (flag == "--out")
+                options.outDir = value;
+            else if (flag == "--preset")
+                options.preset = value;
+            else if (flag == "--init")
+                options.initWeights = value;
+            else if (flag == "--steps")
+                options.steps = integer();
+            else if (flag == "--minutes")
+                options.maxMinutes = real();
+            else if (flag == "--batch")
+                options.batch = integer();
+            else if (flag == "--crop")
+                options.crop = integer();
+            else if (flag == "--frames")
+                options.frames = integer();
+            else if (flag == "--min-spp")
+                options.minSpp = integer();
+            else if (flag == "--max-spp")
+                options.maxSpp = integer();
+            else if (flag == "--val-spp")
+                options.valSpp = integer();
+            else if (flag == "--lr")
+                options.learningRate = real();
+            else if (flag == "--lr-half-life")
+                options.lrHalfLife = integer();
+            else if (flag == "--clip")
+                options.clipNorm = real();
+            else if (flag == "--temporal-weight")
+                options.loss.temporal = real();
+            else if (flag == "--absolute-temporal-weight")
+                options.loss.absoluteTemporal = real();
+            else if (flag == "--coarse-weight")
+                options.loss.coarse = real();
+            else if (flag == "--coarse-cell")
+                options.loss.coarseCell = integer();
+            else if (flag == "--val-every")
+                options.valEvery = integer();
+            else if (flag == "--checkpoint-every")
+                options.checkpointEvery = integer();
+            else if (flag == "--threads")
+                options.threads = integer();
+            else if (flag == "--device")
+                options.device = value;
+            else if (flag == "--seed")
+                options.seed = std::uint64_t(integer());
+            else if (flag == "--max-sequences")
+                options.maxSequences = integer();
+            else if (flag == "--keep-spp")
+                options.keepSpp = integer();
+            else if (flag == "--export")
+                exportPath = value;
+            else
+                throw affinity::Error("unknown option " + flag);
         }
         if (!data.empty()) {
             if (options.trainDir.empty()) options.trainDir = data + "/train";
@@ -138,7 +170,8 @@ int main(int argc, char** argv) {
                   << summary.bestValLoss << "), SMAPE " << summary.finalValSmape << " vs noisy "
                   << summary.finalValNoisySmape << "\n";
         if (!exportPath.empty()) {
-            std::filesystem::copy_file(summary.bestWeights, exportPath, std::filesystem::copy_options::overwrite_existing);
+            std::filesystem::copy_file(summary.bestWeights, exportPath,
+                                       std::filesystem::copy_options::overwrite_existing);
             std::cout << "exported " << summary.bestWeights << " -> " << exportPath << "\n";
         }
         return 0;

@@ -133,8 +133,8 @@ struct Batch {
     std::vector<torch::Tensor> references;
 };
 
-Clip cutClip(const Sequence& sequence, std::int64_t firstFrame, std::int64_t frameCount, std::int64_t y,
-             std::int64_t x, std::int64_t size, const std::vector<std::int64_t>& sampleIndices) {
+Clip cutClip(const Sequence& sequence, std::int64_t firstFrame, std::int64_t frameCount, std::int64_t y, std::int64_t x,
+             std::int64_t size, const std::vector<std::int64_t>& sampleIndices) {
     const torch::Tensor index = torch::tensor(sampleIndices, torch::kLong);
     Clip clip;
     clip.samples = sequence.samples.narrow(0, firstFrame, frameCount)
@@ -160,7 +160,8 @@ Batch assemble(std::vector<Clip>& clips, const torch::Device& device) {
             reference.push_back(clip.reference[t]);
         }
         batch.frames.push_back({torch::stack(samples).contiguous().to(device),
-                                torch::stack(motion).contiguous().to(device), torch::stack(valid).contiguous().to(device)});
+                                torch::stack(motion).contiguous().to(device),
+                                torch::stack(valid).contiguous().to(device)});
         batch.references.push_back(torch::stack(reference).contiguous().to(device));
     }
     return batch;
@@ -265,8 +266,9 @@ void checkOptions(const TrainOptions& o) {
     if (o.steps < 1 || o.batch < 1 || o.crop < 8 || o.frames < 1 || o.minSpp < 1 || o.maxSpp < o.minSpp ||
         o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1 ||
         !(o.loss.temporal >= 0) || !(o.loss.absoluteTemporal >= 0) || !(o.loss.coarse >= 0) || o.loss.coarseCell < 1) {
-        throw Error("training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
-                    "loss weights >= 0, coarse cell >= 1)");
+        throw Error(
+            "training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
+            "loss weights >= 0, coarse cell >= 1)");
     }
     if (o.keepSpp < 0 || (o.keepSpp > 0 && o.keepSpp < o.maxSpp))
         throw Error("--keep-spp must be 0 (all samples) or at least --max-spp (" + std::to_string(o.maxSpp) + ")");
@@ -324,7 +326,8 @@ TrainSummary runTraining(const TrainOptions& options) {
                    stateFile = out / "state.txt", csvFile = out / "loss.csv";
     int step = 0;
     double bestVal = -1;
-    const bool resuming = options.resume && fs::exists(checkpoint) && fs::exists(optimizerFile) && fs::exists(stateFile);
+    const bool resuming =
+        options.resume && fs::exists(checkpoint) && fs::exists(optimizerFile) && fs::exists(stateFile);
     AffinityModel model{nullptr};
     if (resuming) {
         model = modelFromWeights(Weights::fromFile(checkpoint.string()));
@@ -375,8 +378,7 @@ TrainSummary runTraining(const TrainOptions& options) {
         fs::rename(out / "state.txt.tmp", stateFile);
     };
 
-    auto evaluate = [&](double trainLoss, double trainSmape, double trainTemporal, double trainReg,
-                        double trainNoisy) {
+    auto evaluate = [&](double trainLoss, double trainSmape, double trainTemporal, double trainReg, double trainNoisy) {
         const Validation v = validate(model, val, lossWeights);
         char line[512];
         std::snprintf(line, sizeof line, "%d,%.1f,%.3g,%.6f,%.6f,%.6f,%.4f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f,%.6f\n", step,
@@ -397,8 +399,8 @@ TrainSummary runTraining(const TrainOptions& options) {
         std::snprintf(line, sizeof line,
                       "step %5d  %6.0f s  train %.4f (smape %.4f, noisy %.4f)  val %.4f (smape %.4f, temporal "
                       "%.4f, noisy %.4f)",
-                      step, elapsedBefore + elapsed(), trainLoss, trainSmape, trainNoisy, v.loss, v.smape,
-                      v.temporal, v.noisySmape);
+                      step, elapsedBefore + elapsed(), trainLoss, trainSmape, trainNoisy, v.loss, v.smape, v.temporal,
+                      v.noisySmape);
         say(line);
     };
 

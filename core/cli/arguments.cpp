@@ -66,8 +66,8 @@ void Arguments::size(const std::string& name, int& width, int& height) const {
         return error == std::errc() && stop == end;
     };
     int w = 0, h = 0;
-    if (x == std::string::npos || !parse(s.data(), s.data() + x, w) || !parse(s.data() + x + 1, s.data() + s.size(), h) ||
-        w < 1 || h < 1 || w > 16384 || h > 16384)
+    if (x == std::string::npos || !parse(s.data(), s.data() + x, w) ||
+        !parse(s.data() + x + 1, s.data() + s.size(), h) || w < 1 || h < 1 || w > 16384 || h > 16384)
         throw Error("option " + name + " expects WIDTHxHEIGHT with both in 1..16384, got '" + s + "'");
     width = w;
     height = h;

@@ -15,7 +15,7 @@ public:
 
     bool has(const std::string& name) const { return values_.count(name) > 0; }
     bool flag(const std::string& name) const { return flags_.count(name) > 0; }
-    std::string text(const std::string& name) const;              // required
+    std::string text(const std::string& name) const;  // required
     std::string text(const std::string& name, const std::string& fallback) const;
     int integer(const std::string& name, int fallback, int lo, int hi) const;
     unsigned long long unsignedInteger(const std::string& name, unsigned long long fallback) const;

@@ -50,12 +50,15 @@ int denoiseCommand(const std::vector<std::string>& args) {
     if (frames.empty()) throw Error("input folder " + in.string() + " holds no frame files (frame_NNNN.exr)");
     std::error_code same;
     if (fs::exists(out) && fs::equivalent(in, out, same))
-        throw Error("output folder must differ from the input folder " + in.string() + ": inputs are never overwritten");
-    if (fs::exists(out) && !fs::is_directory(out)) throw Error("output " + out.string() + " exists and is not a folder");
+        throw Error("output folder must differ from the input folder " + in.string() +
+                    ": inputs are never overwritten");
+    if (fs::exists(out) && !fs::is_directory(out))
+        throw Error("output " + out.string() + " exists and is not a folder");
     if (fs::is_directory(out) && !a.flag("--force"))
         for (const auto& entry : fs::directory_iterator(out))
             if (entry.path().filename().string().rfind("denoised_", 0) == 0)
-                throw Error("output folder " + out.string() + " already holds denoised frames; pass --force to overwrite them");
+                throw Error("output folder " + out.string() +
+                            " already holds denoised frames; pass --force to overwrite them");
     // The model is read before the output folder is made: a refused run leaves nothing behind.
     Denoiser denoiser(a.has("--model") ? Model::fromFile(a.text("--model"), precision) : Model::builtIn(precision));
     // Before anything is written: a signal from here on leaves what was finished, nothing half-made.
@@ -112,11 +115,12 @@ int denoiseCommand(const std::vector<std::string>& args) {
                                     {"milliseconds_per_frame", done > 0 ? totalSeconds * 1e3 / double(done) : 0.0},
                                     {"per_frame", perFrame}};
     // A run stopped before its first frame leaves nothing (`folder` goes if this run made it).
-    if (done > 0) writeAtomically((out / "denoise_summary.json").string(), [&](const std::string& temporary) {
-        std::ofstream file(temporary);
-        file << summary.dump(2) << "\n";
-        if (!file) throw Error("cannot write " + (out / "denoise_summary.json").string());
-    });
+    if (done > 0)
+        writeAtomically((out / "denoise_summary.json").string(), [&](const std::string& temporary) {
+            std::ofstream file(temporary);
+            file << summary.dump(2) << "\n";
+            if (!file) throw Error("cannot write " + (out / "denoise_summary.json").string());
+        });
     if (interrupted) return reportInterrupted("denoise", (long long)done, (long long)frames.size(), out.string());
     bar.finish(std::to_string(frames.size()) + " frames, " +
                std::to_string(int(totalSeconds * 1e3 / double(frames.size()))) + " ms per frame -> " + out.string());

@@ -44,7 +44,8 @@ void printUsage(std::FILE* to) {
                  "           --scene NAME_OR_FILE --frames N --spp S --size WxH --reference-spp R\n"
                  "           --seed K --out DIR [--first-frame F] [--compression none|zip|piz]\n"
                  "           [--feature-convention renderer|cycles] [--previews] [--force]\n"
-                 "  denoise  denoise a frame sequence: --in DIR --out DIR [--model FILE.affw] [--precision auto|fp32|bf16] [--force]\n"
+                 "  denoise  denoise a frame sequence: --in DIR --out DIR [--model FILE.affw] [--precision "
+                 "auto|fp32|bf16] [--force]\n"
                  "'affinity <command> --help' describes a command's options.\n");
 }
 

@@ -161,8 +161,8 @@ void checkMemory(const render::RenderSettings& settings, ExrCompression compress
 
 int renderCommand(const std::vector<std::string>& args) {
     const Arguments a(args,
-                      {"--scene", "--frames", "--spp", "--size", "--reference-spp", "--seed", "--out",
-                       "--first-frame", "--compression", "--feature-convention"},
+                      {"--scene", "--frames", "--spp", "--size", "--reference-spp", "--seed", "--out", "--first-frame",
+                       "--compression", "--feature-convention"},
                       {"--force", "--previews"});
     render::RenderSettings settings;
     a.size("--size", settings.width, settings.height);
@@ -177,7 +177,8 @@ int renderCommand(const std::vector<std::string>& args) {
     const render::Scene scene = render::resolveScene(a.text("--scene"));
 
     // Never overwrite a sequence unless asked to.
-    if (fs::exists(out) && !fs::is_directory(out)) throw Error("output " + out.string() + " exists and is not a folder");
+    if (fs::exists(out) && !fs::is_directory(out))
+        throw Error("output " + out.string() + " exists and is not a folder");
     if (fs::is_directory(out) && !listFrameFiles(out.string()).empty() && !a.flag("--force"))
         throw Error("output folder " + out.string() + " already holds frames; pass --force to overwrite them");
     // Every check before anything is written: a refused run leaves the folder as it was.
@@ -210,7 +211,8 @@ int renderCommand(const std::vector<std::string>& args) {
         const std::uint64_t raysBefore = renderer.raysCast();
         SampleFrame frame;
         try {
-            frame = renderer.render(frameIndex, [&](double f) { bar.update(f); }, interruptRequested);
+            frame = renderer.render(
+                frameIndex, [&](double f) { bar.update(f); }, interruptRequested);
         } catch (const Interrupted&) {
             break;
         } catch (const std::bad_alloc&) {
@@ -245,18 +247,19 @@ int renderCommand(const std::vector<std::string>& args) {
         bar.finish(std::to_string(int(rays / seconds / 1e6)) + " Mrays/s");
     }
     const int done = int(perFrame.size());
-    const nlohmann::json summary = {{"scene", scene.name},
-                                    {"size", {settings.width, settings.height}},
-                                    {"frames", done},
-                                    {"requested_frames", frames},
-                                    {"interrupted", done < frames},
-                                    {"spp", settings.spp},
-                                    {"reference_spp", settings.referenceSpp},
-                                    {"seed", settings.seed},
-                                    {"feature_convention", render::featureConventionName(settings.featureConvention)},
-                                    {"seconds", totalSeconds},
-                                    {"rays_per_second", totalSeconds > 0 ? double(renderer.raysCast()) / totalSeconds : 0.0},
-                                    {"per_frame", perFrame}};
+    const nlohmann::json summary = {
+        {"scene", scene.name},
+        {"size", {settings.width, settings.height}},
+        {"frames", done},
+        {"requested_frames", frames},
+        {"interrupted", done < frames},
+        {"spp", settings.spp},
+        {"reference_spp", settings.referenceSpp},
+        {"seed", settings.seed},
+        {"feature_convention", render::featureConventionName(settings.featureConvention)},
+        {"seconds", totalSeconds},
+        {"rays_per_second", totalSeconds > 0 ? double(renderer.raysCast()) / totalSeconds : 0.0},
+        {"per_frame", perFrame}};
     if (done > 0) writeText(out / "render_summary.json", summary.dump(2) + "\n");
     if (done < frames) return reportInterrupted("render", done, frames, out.string());
     std::printf("%s: %d frames of %dx%d at %d spp (reference %d spp) in %.1f s, %.1f Mrays/s -> %s\n",

@@ -16,8 +16,7 @@ Matrix4 toRowMajor(const glm::mat4& m) {
 
 }  // namespace
 
-CameraView::CameraView(const Camera& camera, float frame, int width, int height)
-    : width_(width), height_(height) {
+CameraView::CameraView(const Camera& camera, float frame, int width, int height) : width_(width), height_(height) {
     CameraKey key = camera.keyAt(frame);
     if (glm::length(key.target - key.position) <= 0.0f)
         throw Error("camera position and target coincide at frame " + std::to_string(frame));

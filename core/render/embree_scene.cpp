@@ -13,8 +13,9 @@ namespace {
 RTCDevice device() {
     static RTCDevice instance = [] {
         RTCDevice d = rtcNewDevice(nullptr);
-        if (!d) throw Error("Embree could not create a device (error " +
-                            std::to_string(int(rtcGetDeviceError(nullptr))) + ")");
+        if (!d)
+            throw Error("Embree could not create a device (error " + std::to_string(int(rtcGetDeviceError(nullptr))) +
+                        ")");
         return d;
     }();
     return instance;
@@ -49,15 +50,14 @@ EmbreeScene::EmbreeScene(const Scene& scene, float frame) : scene_(scene) {
     meshes_.reserve(scene.objects.size());
     for (std::size_t id = 0; id < scene.objects.size(); ++id) {
         const Object& object = scene.objects[id];
-        meshes_.push_back(placeMesh(shapeMesh(object.shape), object.transformAt(frame).matrix(),
-                                    object.material));
+        meshes_.push_back(placeMesh(shapeMesh(object.shape), object.transformAt(frame).matrix(), object.material));
         const WorldMesh& m = meshes_.back();
         RTCGeometry geometry = rtcNewGeometry(device(), RTC_GEOMETRY_TYPE_TRIANGLE);
         // Embree reads the buffers in place; they live as long as this scene.
-        rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
-                                   m.positions.data(), 0, sizeof(glm::vec3), m.positions.size());
-        rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
-                                   m.triangles.data(), 0, sizeof(glm::uvec3), m.triangles.size());
+        rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, m.positions.data(), 0,
+                                   sizeof(glm::vec3), m.positions.size());
+        rtcSetSharedGeometryBuffer(geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, m.triangles.data(), 0,
+                                   sizeof(glm::uvec3), m.triangles.size());
         rtcCommitGeometry(geometry);
         rtcAttachGeometryByID(rtcScene_, geometry, unsigned(id));
         rtcReleaseGeometry(geometry);
@@ -94,8 +94,8 @@ std::optional<SurfaceHit> EmbreeScene::intersect(const glm::vec3& origin, const 
     hit.distance = rayHit.ray.tfar;
     hit.position = origin + direction * hit.distance;
     hit.shadingNormal = glm::normalize(blend(mesh.normals));
-    glm::vec3 faceNormal = glm::cross(mesh.positions[tri.y] - mesh.positions[tri.x],
-                                      mesh.positions[tri.z] - mesh.positions[tri.x]);
+    glm::vec3 faceNormal =
+        glm::cross(mesh.positions[tri.y] - mesh.positions[tri.x], mesh.positions[tri.z] - mesh.positions[tri.x]);
     hit.geometricNormal = glm::normalize(faceNormal);
     if (glm::dot(hit.geometricNormal, hit.shadingNormal) < 0.0f) hit.geometricNormal = -hit.geometricNormal;
     hit.uv = blend(mesh.uvs);

@@ -18,7 +18,7 @@ struct SurfaceHit {
     glm::vec3 geometricNormal{0.0f};  // unit, on the same side as the shading normal
     glm::vec3 shadingNormal{0.0f};    // unit, interpolated, pointing out of the object
     glm::vec2 uv{0.0f};
-    glm::vec3 objectPosition{0.0f};   // the hit point in the object's own space
+    glm::vec3 objectPosition{0.0f};  // the hit point in the object's own space
     int object = -1;
     int material = -1;
     unsigned primitive = 0;

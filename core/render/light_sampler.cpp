@@ -39,8 +39,7 @@ LightSampler::LightSampler(const EmbreeScene& scene) : scene_(scene) {
     for (std::size_t i = 0; i < triangles_.size(); ++i) {
         running += power[i];
         cdf_.push_back(running / total);
-        pickPmf_[triangles_[i].object][triangles_[i].primitive] =
-            (1.0f - environmentProbability_) * power[i] / total;
+        pickPmf_[triangles_[i].object][triangles_[i].primitive] = (1.0f - environmentProbability_) * power[i] / total;
     }
     if (!cdf_.empty()) cdf_.back() = 1.0f;
 }
@@ -69,8 +68,8 @@ LightSample LightSampler::sample(const glm::vec3& from, float uPick, const glm::
     float b0 = 1.0f - su, b1 = u.y * su, b2 = 1.0f - b0 - b1;
     glm::vec3 p = b0 * mesh.positions[t.x] + b1 * mesh.positions[t.y] + b2 * mesh.positions[t.z];
     // The area-to-solid-angle Jacobian needs the true face normal, oriented outwards.
-    glm::vec3 n = glm::normalize(glm::cross(mesh.positions[t.y] - mesh.positions[t.x],
-                                            mesh.positions[t.z] - mesh.positions[t.x]));
+    glm::vec3 n = glm::normalize(
+        glm::cross(mesh.positions[t.y] - mesh.positions[t.x], mesh.positions[t.z] - mesh.positions[t.x]));
     if (glm::dot(n, mesh.normals[t.x] + mesh.normals[t.y] + mesh.normals[t.z]) < 0.0f) n = -n;
     glm::vec3 toLight = p - from;
     float distance2 = glm::dot(toLight, toLight);

@@ -36,8 +36,8 @@ private:
     };
     const EmbreeScene& scene_;
     std::vector<EmissiveTriangle> triangles_;
-    std::vector<float> cdf_;                      // over triangles_, normalised to 1
-    std::vector<std::vector<float>> pickPmf_;     // [object][primitive]; empty for non-emitters
+    std::vector<float> cdf_;                   // over triangles_, normalised to 1
+    std::vector<std::vector<float>> pickPmf_;  // [object][primitive]; empty for non-emitters
     bool hasEnvironment_ = false;
     float environmentProbability_ = 0.0f;
 };

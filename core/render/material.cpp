@@ -39,13 +39,9 @@ constexpr float kMinPlasticLobeProbability = 0.1f;
 
 float sanitizeUnit(float v) { return std::isfinite(v) ? std::clamp(v, 0.0f, 1.0f) : 0.0f; }
 
-glm::vec3 sanitizeColor(const glm::vec3& c) {
-    return {sanitizeUnit(c.x), sanitizeUnit(c.y), sanitizeUnit(c.z)};
-}
+glm::vec3 sanitizeColor(const glm::vec3& c) { return {sanitizeUnit(c.x), sanitizeUnit(c.y), sanitizeUnit(c.z)}; }
 
-bool isFinite(const glm::vec3& v) {
-    return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z);
-}
+bool isFinite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v.y) && std::isfinite(v.z); }
 
 // Cosine-weighted direction in the upper hemisphere (Malley: uniform disk lifted up).
 glm::vec3 sampleCosineHemisphere(const glm::vec2& u) {
@@ -66,8 +62,7 @@ BsdfValue evaluateLambert(const glm::vec3& color, const glm::vec3& wo, const glm
     return {color * kInvPi, glm::vec3(0.0f), wi.z * kInvPi};
 }
 
-std::optional<BsdfSample> sampleLambert(const glm::vec3& color, const glm::vec3& wo,
-                                        const glm::vec2& u) {
+std::optional<BsdfSample> sampleLambert(const glm::vec3& color, const glm::vec3& wo, const glm::vec2& u) {
     if (wo.z <= 0.0f) return std::nullopt;
     BsdfSample s;
     s.wi = sampleCosineHemisphere(u);
@@ -86,8 +81,7 @@ struct GgxReflection {
 };
 
 // wo, wi both in the upper hemisphere.
-GgxReflection ggxReflection(const GgxDistribution& ggx, const glm::vec3& wo,
-                            const glm::vec3& wi) {
+GgxReflection ggxReflection(const GgxDistribution& ggx, const glm::vec3& wo, const glm::vec3& wi) {
     const glm::vec3 h = wo + wi;
     const float len2 = glm::dot(h, h);
     if (!(len2 > 1e-12f)) return {};
@@ -103,15 +97,14 @@ GgxReflection ggxReflection(const GgxDistribution& ggx, const glm::vec3& wo,
 
 // ---- Conductor ----
 
-BsdfValue evaluateConductor(const Material& mat, const glm::vec3& f0, const glm::vec3& wo,
-                            const glm::vec3& wi) {
+BsdfValue evaluateConductor(const Material& mat, const glm::vec3& f0, const glm::vec3& wo, const glm::vec3& wi) {
     if (wo.z <= 0.0f || wi.z <= 0.0f || mat.roughness < kDeltaRoughness) return {};
     const GgxReflection r = ggxReflection(GgxDistribution::fromRoughness(mat.roughness), wo, wi);
     return {glm::vec3(0.0f), fresnelSchlick(f0, r.cosOm) * r.dgOver4CosCos, r.pdf};
 }
 
-std::optional<BsdfSample> sampleConductor(const Material& mat, const glm::vec3& f0,
-                                          const glm::vec3& wo, const glm::vec2& u) {
+std::optional<BsdfSample> sampleConductor(const Material& mat, const glm::vec3& f0, const glm::vec3& wo,
+                                          const glm::vec2& u) {
     if (wo.z <= 0.0f) return std::nullopt;
     BsdfSample s;
     if (mat.roughness < kDeltaRoughness) {
@@ -137,8 +130,8 @@ std::optional<BsdfSample> sampleConductor(const Material& mat, const glm::vec3& 
 // ---- Dielectric ----
 
 // Rough dielectric of Walter et al. 2007 with the height-correlated G2 (microfacet.h).
-BsdfValue evaluateRoughDielectric(const GgxDistribution& ggx, float eta, const glm::vec3& tint,
-                                  const glm::vec3& wo, const glm::vec3& wi) {
+BsdfValue evaluateRoughDielectric(const GgxDistribution& ggx, float eta, const glm::vec3& tint, const glm::vec3& wo,
+                                  const glm::vec3& wi) {
     const float cosO = wo.z;
     const float cosI = wi.z;
     if (cosO == 0.0f || cosI == 0.0f) return {};
@@ -166,26 +159,23 @@ BsdfValue evaluateRoughDielectric(const GgxDistribution& ggx, float eta, const g
     const float d = ggx.d(m);
     BsdfValue v;
     if (reflection) {
-        v.specular = glm::vec3(d * ggx.g2Reflection(wo, wi) * float(fresnel) /
-                               (4.0f * cosO * cosI));
+        v.specular = glm::vec3(d * ggx.g2Reflection(wo, wi) * float(fresnel) / (4.0f * cosO * cosI));
         v.pdf = vnPdf * float(fresnel / (4.0 * std::abs(cosOm)));
     } else {
         // dm / dwi = |wi.m| / (wi.m + wo.m / etap)^2 (Walter et al. 2007, eq. 17).
         const double s = cosIm + cosOm / etap;
         const auto jacobian = float(std::abs(cosIm) / (s * s));
         const auto transmittance = float(1.0 - fresnel);
-        const float f = transmittance * d * ggx.g2Transmission(wo, wi) *
-                        float(std::abs(cosOm)) * jacobian / std::abs(cosO * cosI) /
-                        float(etap * etap);
+        const float f = transmittance * d * ggx.g2Transmission(wo, wi) * float(std::abs(cosOm)) * jacobian /
+                        std::abs(cosO * cosI) / float(etap * etap);
         v.specular = tint * f;
         v.pdf = vnPdf * jacobian * transmittance;
     }
     return v;
 }
 
-std::optional<BsdfSample> sampleRoughDielectric(const GgxDistribution& ggx, float eta,
-                                                const glm::vec3& tint, const glm::vec3& wo,
-                                                float uLobe, const glm::vec2& u) {
+std::optional<BsdfSample> sampleRoughDielectric(const GgxDistribution& ggx, float eta, const glm::vec3& tint,
+                                                const glm::vec3& wo, float uLobe, const glm::vec2& u) {
     if (wo.z == 0.0f) return std::nullopt;
     const glm::vec3 m = ggx.sampleVisibleNormal(wo, u);
     const float cosOm = glm::dot(wo, m);
@@ -215,8 +205,7 @@ std::optional<BsdfSample> sampleRoughDielectric(const GgxDistribution& ggx, floa
     return s;
 }
 
-std::optional<BsdfSample> sampleSmoothDielectric(float eta, const glm::vec3& tint,
-                                                 const glm::vec3& wo, float uLobe) {
+std::optional<BsdfSample> sampleSmoothDielectric(float eta, const glm::vec3& tint, const glm::vec3& wo, float uLobe) {
     if (wo.z == 0.0f) return std::nullopt;
     const auto fresnel = float(fresnelDielectric(wo.z, eta));
     BsdfSample s;
@@ -249,8 +238,7 @@ float plasticCoatProbability(const glm::vec3& base, float fresnelO) {
     return std::clamp(p, kMinPlasticLobeProbability, 1.0f - kMinPlasticLobeProbability);
 }
 
-BsdfValue evaluatePlastic(const Material& mat, const glm::vec3& base, const glm::vec3& wo,
-                          const glm::vec3& wi) {
+BsdfValue evaluatePlastic(const Material& mat, const glm::vec3& base, const glm::vec3& wo, const glm::vec3& wi) {
     if (wo.z <= 0.0f || wi.z <= 0.0f) return {};
     const auto fresnelO = float(fresnelDielectric(wo.z, mat.ior));
     const auto fresnelI = float(fresnelDielectric(wi.z, mat.ior));
@@ -259,16 +247,15 @@ BsdfValue evaluatePlastic(const Material& mat, const glm::vec3& base, const glm:
     v.diffuse = base * (kInvPi * (1.0f - fresnelO) * (1.0f - fresnelI));
     v.pdf = (1.0f - pCoat) * wi.z * kInvPi;
     if (mat.roughness >= kDeltaRoughness) {
-        const GgxReflection r =
-            ggxReflection(GgxDistribution::fromRoughness(mat.roughness), wo, wi);
+        const GgxReflection r = ggxReflection(GgxDistribution::fromRoughness(mat.roughness), wo, wi);
         v.specular = glm::vec3(float(fresnelDielectric(r.cosOm, mat.ior)) * r.dgOver4CosCos);
         v.pdf += pCoat * r.pdf;
     }
     return v;
 }
 
-std::optional<BsdfSample> samplePlastic(const Material& mat, const glm::vec3& base,
-                                        const glm::vec3& wo, float uLobe, const glm::vec2& u) {
+std::optional<BsdfSample> samplePlastic(const Material& mat, const glm::vec3& base, const glm::vec3& wo, float uLobe,
+                                        const glm::vec2& u) {
     if (wo.z <= 0.0f) return std::nullopt;
     const auto fresnelO = float(fresnelDielectric(wo.z, mat.ior));
     const float pCoat = plasticCoatProbability(base, fresnelO);
@@ -302,12 +289,9 @@ std::optional<BsdfSample> samplePlastic(const Material& mat, const glm::vec3& ba
 
 }  // namespace
 
-Bsdf::Bsdf(const Material& material, const glm::vec3& color)
-    : material_(material), color_(sanitizeColor(color)) {
+Bsdf::Bsdf(const Material& material, const glm::vec3& color) : material_(material), color_(sanitizeColor(color)) {
     // Out-of-range parameters from a scene file must not turn into NaN radiance.
-    material_.roughness = std::isfinite(material_.roughness)
-                              ? std::clamp(material_.roughness, 0.0f, 1.0f)
-                              : 1.0f;
+    material_.roughness = std::isfinite(material_.roughness) ? std::clamp(material_.roughness, 0.0f, 1.0f) : 1.0f;
     if (!std::isfinite(material_.ior) || !(material_.ior > 0.0f)) material_.ior = 1.5f;
 }
 
@@ -336,8 +320,8 @@ BsdfValue Bsdf::evaluate(const glm::vec3& wo, const glm::vec3& wi) const {
         break;
     case MaterialType::Dielectric:
         if (material_.roughness >= kDeltaRoughness) {
-            v = evaluateRoughDielectric(GgxDistribution::fromRoughness(material_.roughness),
-                                        material_.ior, color_, wo, wi);
+            v = evaluateRoughDielectric(GgxDistribution::fromRoughness(material_.roughness), material_.ior, color_, wo,
+                                        wi);
         }
         break;
     case MaterialType::Plastic:
@@ -349,8 +333,7 @@ BsdfValue Bsdf::evaluate(const glm::vec3& wo, const glm::vec3& wi) const {
     return v;
 }
 
-std::optional<BsdfSample> Bsdf::sample(const glm::vec3& wo, float uLobe,
-                                       const glm::vec2& u) const {
+std::optional<BsdfSample> Bsdf::sample(const glm::vec3& wo, float uLobe, const glm::vec2& u) const {
     std::optional<BsdfSample> s;
     switch (material_.type) {
     case MaterialType::Diffuse:
@@ -362,8 +345,8 @@ std::optional<BsdfSample> Bsdf::sample(const glm::vec3& wo, float uLobe,
         break;
     case MaterialType::Dielectric:
         if (material_.roughness >= kDeltaRoughness) {
-            s = sampleRoughDielectric(GgxDistribution::fromRoughness(material_.roughness),
-                                      material_.ior, color_, wo, uLobe, u);
+            s = sampleRoughDielectric(GgxDistribution::fromRoughness(material_.roughness), material_.ior, color_, wo,
+                                      uLobe, u);
         } else {
             s = sampleSmoothDielectric(material_.ior, color_, wo, uLobe);
         }

@@ -22,8 +22,7 @@ double logGammaAtLeastOne(double x) {
     const double inv = 1.0 / x;
     const double inv2 = inv * inv;
     const double series = inv * (1.0 / 12.0 - inv2 * (1.0 / 360.0 - inv2 * (1.0 / 1260.0)));
-    return (x - 0.5) * std::log(x) - x + 0.5 * std::log(2.0 * std::numbers::pi) + series -
-           std::log(product);
+    return (x - 0.5) * std::log(x) - x + 0.5 * std::log(2.0 * std::numbers::pi) + series - std::log(product);
 }
 
 }  // namespace
@@ -33,8 +32,7 @@ GgxDistribution GgxDistribution::fromRoughness(float roughness) {
     return GgxDistribution(r * r);
 }
 
-GgxDistribution::GgxDistribution(float alpha)
-    : alpha_(std::isfinite(alpha) ? std::max(alpha, kMinGgxAlpha) : 1.0f) {}
+GgxDistribution::GgxDistribution(float alpha) : alpha_(std::isfinite(alpha) ? std::max(alpha, kMinGgxAlpha) : 1.0f) {}
 
 float GgxDistribution::d(const glm::vec3& m) const {
     if (m.z <= 0.0f) return 0.0f;
@@ -68,8 +66,7 @@ float GgxDistribution::g2Transmission(const glm::vec3& wo, const glm::vec3& wi) 
     if (!std::isfinite(lo) || !std::isfinite(li)) return 0.0f;
     const double a = 1.0 + double(lo);
     const double b = 1.0 + double(li);
-    const double logBeta =
-        logGammaAtLeastOne(a) + logGammaAtLeastOne(b) - logGammaAtLeastOne(a + b);
+    const double logBeta = logGammaAtLeastOne(a) + logGammaAtLeastOne(b) - logGammaAtLeastOne(a + b);
     return float(std::exp(logBeta));
 }
 
@@ -81,8 +78,7 @@ glm::vec3 GgxDistribution::sampleVisibleNormal(const glm::vec3& wo, const glm::v
     // roughness; the visible normals of a hemisphere are the projection of a disk.
     const glm::vec3 vh = glm::normalize(glm::vec3(alpha_ * v.x, alpha_ * v.y, v.z));
     const float lenSq = vh.x * vh.x + vh.y * vh.y;
-    const glm::vec3 t1 =
-        lenSq > 1e-14f ? glm::vec3(-vh.y, vh.x, 0.0f) / std::sqrt(lenSq) : glm::vec3(1, 0, 0);
+    const glm::vec3 t1 = lenSq > 1e-14f ? glm::vec3(-vh.y, vh.x, 0.0f) / std::sqrt(lenSq) : glm::vec3(1, 0, 0);
     const glm::vec3 t2 = glm::cross(vh, t1);
     const float r = std::sqrt(u.x);
     const float phi = 2.0f * std::numbers::pi_v<float> * u.y;
@@ -126,9 +122,7 @@ glm::vec3 fresnelSchlick(const glm::vec3& f0, float cosTheta) {
     return f0 + (glm::vec3(1.0f) - f0) * (m2 * m2 * m);
 }
 
-glm::vec3 reflectAbout(const glm::vec3& w, const glm::vec3& n) {
-    return 2.0f * glm::dot(w, n) * n - w;
-}
+glm::vec3 reflectAbout(const glm::vec3& w, const glm::vec3& n) { return 2.0f * glm::dot(w, n) * n - w; }
 
 std::optional<glm::vec3> refractThrough(const glm::vec3& w, const glm::vec3& n, float eta) {
     const float cosI = glm::dot(w, n);

@@ -31,8 +31,8 @@ bool isFinite(const glm::vec3& v) { return std::isfinite(v.x) && std::isfinite(v
 
 // Offsets a ray origin off the surface to the side `direction` leaves on.
 glm::vec3 offsetOrigin(const SurfaceHit& hit, const glm::vec3& direction) {
-    float scale = 1e-4f * (1.0f + std::max({std::abs(hit.position.x), std::abs(hit.position.y),
-                                            std::abs(hit.position.z)}));
+    float scale =
+        1e-4f * (1.0f + std::max({std::abs(hit.position.x), std::abs(hit.position.y), std::abs(hit.position.z)}));
     float side = glm::dot(direction, hit.geometricNormal) >= 0.0f ? 1.0f : -1.0f;
     return hit.position + hit.geometricNormal * (scale * side);
 }
@@ -85,8 +85,8 @@ struct CyclesFeatures {
         if (written) return;
         const glm::vec3 reflectance = bsdf.albedo();
         // Cycles drops closures of zero weight: a black emitter is a pure Emission shader.
-        const bool pureEmission = material.type == MaterialType::Emitter &&
-                                  std::max({reflectance.x, reflectance.y, reflectance.z}) <= 0.0f;
+        const bool pureEmission =
+            material.type == MaterialType::Emitter && std::max({reflectance.x, reflectance.y, reflectance.z}) <= 0.0f;
         if (!pureEmission && isCyclesSpecular(material)) {
             chainTint *= reflectance;
             return;
@@ -129,12 +129,12 @@ const char* featureConventionName(FeatureConvention convention) {
 }
 
 int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDirection, Pcg32& rng,
-                       float* features) const {
+                      float* features) const {
     std::fill(features, features + kFeatureCount, 0.0f);
     const Scene& scene = scene_.scene();
     RadianceSplit radiance;
     bool foundFirstNonSpecular = false;
-    bool previousWasDelta = true;   // the camera acts like a delta vertex for MIS
+    bool previousWasDelta = true;  // the camera acts like a delta vertex for MIS
     float previousBsdfPdf = 0.0f;
     glm::vec3 previousPosition = cameraOrigin;
     float pathLength = 0.0f;
@@ -163,9 +163,8 @@ int PathTracer::trace(const glm::vec3& cameraOrigin, const glm::vec3& cameraDire
         // Emission (one-sided: emitters shine towards their outward normal).
         const bool emits = material.type == MaterialType::Emitter && glm::dot(hit->geometricNormal, wo) > 0.0f;
         if (emits) {
-            float weight = previousWasDelta
-                               ? 1.0f
-                               : powerHeuristic(previousBsdfPdf, lights_.pdfEmitter(previousPosition, *hit));
+            float weight =
+                previousWasDelta ? 1.0f : powerHeuristic(previousBsdfPdf, lights_.pdfEmitter(previousPosition, *hit));
             radiance.add(material.emission * weight);
         }
 

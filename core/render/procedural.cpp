@@ -85,7 +85,9 @@ void addSparks(Scene& scene, std::uint64_t seed) {
         start.scale = glm::vec3(draw.uniform(0.01f, 0.04f));
         Transform end = start;
         end.translate += draw.vec(-0.8f, 0.8f);
-        scene.objects.push_back({"spark" + std::to_string(i), ShapeType::Sphere, addEmitter(scene, emission),
+        scene.objects.push_back({"spark" + std::to_string(i),
+                                 ShapeType::Sphere,
+                                 addEmitter(scene, emission),
                                  {{0.0f, start}, {kProceduralSpan, end}}});
     }
 }
@@ -103,10 +105,11 @@ Scene proceduralScene(std::uint64_t seed, ProceduralVariant variant) {
     scene.textures.push_back(Texture{});
 
     // Ground, and sometimes a back wall: most real shots have large flat receivers.
-    scene.objects.push_back({"ground", ShapeType::Quad, addMaterial(scene, draw), {{0.0f, {{0, 0, 0}, {0, 0, 0}, {12, 1, 12}}}}});
+    scene.objects.push_back(
+        {"ground", ShapeType::Quad, addMaterial(scene, draw), {{0.0f, {{0, 0, 0}, {0, 0, 0}, {12, 1, 12}}}}});
     if (draw.chance(0.5f))
-        scene.objects.push_back({"wall", ShapeType::Quad, addMaterial(scene, draw),
-                                 {{0.0f, {{0, 4, -5}, {90, 0, 0}, {12, 1, 4}}}}});
+        scene.objects.push_back(
+            {"wall", ShapeType::Quad, addMaterial(scene, draw), {{0.0f, {{0, 4, -5}, {90, 0, 0}, {12, 1, 4}}}}});
 
     const ShapeType shapes[] = {ShapeType::Sphere, ShapeType::Box, ShapeType::Cylinder, ShapeType::Sphere};
     int count = draw.integer(3, 9);
@@ -137,15 +140,22 @@ Scene proceduralScene(std::uint64_t seed, ProceduralVariant variant) {
     for (int i = 0; i < areaLights; ++i) {
         float size = draw.uniform(0.3f, 1.5f);
         glm::vec3 emission = draw.color(0.6f, 1.0f) * draw.uniform(3.0f, 15.0f) / (size * size) * 2.0f;
-        scene.objects.push_back({"area_light" + std::to_string(i), ShapeType::Quad, addEmitter(scene, emission),
-                                 {{0.0f, {{draw.uniform(-3, 3), draw.uniform(3.5f, 6.0f), draw.uniform(-3, 3)},
-                                          {180.0f, 0.0f, 0.0f}, {size, 1.0f, size}}}}});
+        scene.objects.push_back({"area_light" + std::to_string(i),
+                                 ShapeType::Quad,
+                                 addEmitter(scene, emission),
+                                 {{0.0f,
+                                   {{draw.uniform(-3, 3), draw.uniform(3.5f, 6.0f), draw.uniform(-3, 3)},
+                                    {180.0f, 0.0f, 0.0f},
+                                    {size, 1.0f, size}}}}});
     }
     if (draw.chance(0.3f)) {
         glm::vec3 emission = draw.color(0.6f, 1.0f) * draw.uniform(50.0f, 400.0f);
-        scene.objects.push_back({"small_light", ShapeType::Sphere, addEmitter(scene, emission),
-                                 {{0.0f, {{draw.uniform(-3, 3), draw.uniform(0.5f, 3.0f), draw.uniform(-3, 2)},
-                                          {0, 0, 0}, glm::vec3(0.05f)}}}});
+        scene.objects.push_back(
+            {"small_light",
+             ShapeType::Sphere,
+             addEmitter(scene, emission),
+             {{0.0f,
+               {{draw.uniform(-3, 3), draw.uniform(0.5f, 3.0f), draw.uniform(-3, 2)}, {0, 0, 0}, glm::vec3(0.05f)}}}});
     }
     if (areaLights == 0 || draw.chance(0.6f)) {
         float intensity = draw.uniform(0.2f, 1.5f);

@@ -52,11 +52,9 @@ void Scene::validate() const {
     for (std::size_t i = 0; i < materials.size(); ++i) {
         const Material& m = materials[i];
         if (m.texture < 0 || m.texture >= int(textures.size()))
-            throw Error("scene '" + name + "': material " + std::to_string(i) +
-                        " refers to a missing texture");
+            throw Error("scene '" + name + "': material " + std::to_string(i) + " refers to a missing texture");
         if (m.roughness < 0.0f || m.roughness > 1.0f)
-            throw Error("scene '" + name + "': material " + std::to_string(i) +
-                        " has roughness outside [0, 1]");
+            throw Error("scene '" + name + "': material " + std::to_string(i) + " has roughness outside [0, 1]");
         if (m.ior < 1.0f || m.ior > 4.0f)
             throw Error("scene '" + name + "': material " + std::to_string(i) +
                         " has an index of refraction outside [1, 4]");
@@ -67,8 +65,7 @@ void Scene::validate() const {
         if (o.keys.empty()) throw Error("scene '" + name + "': object '" + o.name + "' has no transform");
         for (std::size_t i = 1; i < o.keys.size(); ++i)
             if (o.keys[i].frame <= o.keys[i - 1].frame)
-                throw Error("scene '" + name + "': object '" + o.name +
-                            "' has keyframes out of order");
+                throw Error("scene '" + name + "': object '" + o.name + "' has keyframes out of order");
     }
     if (camera.keys.empty()) throw Error("scene '" + name + "' has no camera position");
     for (std::size_t i = 1; i < camera.keys.size(); ++i)

@@ -56,9 +56,7 @@ struct Camera {
 struct Environment {
     glm::vec3 top{0.0f};
     glm::vec3 bottom{0.0f};
-    glm::vec3 radiance(const glm::vec3& direction) const {
-        return glm::mix(bottom, top, 0.5f * (direction.y + 1.0f));
-    }
+    glm::vec3 radiance(const glm::vec3& direction) const { return glm::mix(bottom, top, 0.5f * (direction.y + 1.0f)); }
     bool isBlack() const { return top == glm::vec3(0.0f) && bottom == glm::vec3(0.0f); }
 };
 

@@ -102,13 +102,16 @@ private:
 
 const std::map<std::string, TextureType> kTextureTypes{
     {"constant", TextureType::Constant}, {"checker", TextureType::Checker}, {"noise", TextureType::Noise}};
-const std::map<std::string, MaterialType> kMaterialTypes{
-    {"diffuse", MaterialType::Diffuse},       {"conductor", MaterialType::Conductor},
-    {"dielectric", MaterialType::Dielectric}, {"plastic", MaterialType::Plastic},
-    {"emitter", MaterialType::Emitter}};
-const std::map<std::string, ShapeType> kShapes{{"sphere", ShapeType::Sphere}, {"box", ShapeType::Box},
-                                                {"quad", ShapeType::Quad},     {"cylinder", ShapeType::Cylinder},
-                                                {"disk", ShapeType::Disk}};
+const std::map<std::string, MaterialType> kMaterialTypes{{"diffuse", MaterialType::Diffuse},
+                                                         {"conductor", MaterialType::Conductor},
+                                                         {"dielectric", MaterialType::Dielectric},
+                                                         {"plastic", MaterialType::Plastic},
+                                                         {"emitter", MaterialType::Emitter}};
+const std::map<std::string, ShapeType> kShapes{{"sphere", ShapeType::Sphere},
+                                               {"box", ShapeType::Box},
+                                               {"quad", ShapeType::Quad},
+                                               {"cylinder", ShapeType::Cylinder},
+                                               {"disk", ShapeType::Disk}};
 
 template <typename Enum>
 std::string nameOf(const std::map<std::string, Enum>& options, Enum value) {
@@ -308,8 +311,8 @@ std::string sceneToJson(const Scene& scene) {
     Json textures = Json::object();
     for (std::size_t i = 0; i < scene.textures.size(); ++i) {
         const Texture& t = scene.textures[i];
-        textures["t" + std::to_string(i)] = {{"type", nameOf(kTextureTypes, t.type)}, {"a", vec(t.colorA)},
-                                             {"b", vec(t.colorB)}, {"scale", t.scale}};
+        textures["t" + std::to_string(i)] = {
+            {"type", nameOf(kTextureTypes, t.type)}, {"a", vec(t.colorA)}, {"b", vec(t.colorB)}, {"scale", t.scale}};
     }
     root["textures"] = textures;
     Json materials = Json::object();
@@ -317,7 +320,8 @@ std::string sceneToJson(const Scene& scene) {
         const Material& m = scene.materials[i];
         materials["m" + std::to_string(i)] = {{"type", nameOf(kMaterialTypes, m.type)},
                                               {"texture", "t" + std::to_string(m.texture)},
-                                              {"roughness", m.roughness}, {"ior", m.ior},
+                                              {"roughness", m.roughness},
+                                              {"ior", m.ior},
                                               {"emission", vec(m.emission)}};
     }
     root["materials"] = materials;
@@ -325,10 +329,14 @@ std::string sceneToJson(const Scene& scene) {
     for (const Object& o : scene.objects) {
         Json keys = Json::array();
         for (const TransformKey& k : o.keys)
-            keys.push_back({{"frame", k.frame}, {"translate", vec(k.transform.translate)},
-                            {"rotate", vec(k.transform.rotateDegrees)}, {"scale", vec(k.transform.scale)}});
-        objects.push_back({{"name", o.name}, {"shape", nameOf(kShapes, o.shape)},
-                           {"material", "m" + std::to_string(o.material)}, {"keys", keys}});
+            keys.push_back({{"frame", k.frame},
+                            {"translate", vec(k.transform.translate)},
+                            {"rotate", vec(k.transform.rotateDegrees)},
+                            {"scale", vec(k.transform.scale)}});
+        objects.push_back({{"name", o.name},
+                           {"shape", nameOf(kShapes, o.shape)},
+                           {"material", "m" + std::to_string(o.material)},
+                           {"keys", keys}});
     }
     root["objects"] = objects;
     root["environment"] = {{"top", vec(scene.environment.top)}, {"bottom", vec(scene.environment.bottom)}};

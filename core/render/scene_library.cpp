@@ -42,8 +42,9 @@ Scene resolveScene(const std::string& nameOrFile) {
     if (fs::is_regular_file(bundled)) return loadSceneFile(bundled.string());
     std::string known;
     for (const std::string& name : bundledSceneNames()) known += (known.empty() ? "" : ", ") + name;
-    throw Error("unknown scene '" + nameOrFile + "': not a file, not " + proceduralForms + ", and not a bundled scene (" +
-                (known.empty() ? "none found in " + bundledScenesDirectory() : known) + ")");
+    throw Error("unknown scene '" + nameOrFile + "': not a file, not " + proceduralForms +
+                ", and not a bundled scene (" + (known.empty() ? "none found in " + bundledScenesDirectory() : known) +
+                ")");
 }
 
 }  // namespace affinity::render

@@ -76,9 +76,9 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
                 for (int s = 0; s < settings_.spp; ++s) {
                     Pcg32 rng = sampleRng(settings_.seed, frameIndex, pixel, std::uint64_t(s));
                     glm::vec2 jitter(rng.next(), rng.next());
-                    rays += std::uint64_t(tracer.trace(
-                        camera.position(), camera.direction(float(x) + jitter.x, float(y) + jitter.y), rng,
-                        frame.sample(x, y, s)));
+                    rays += std::uint64_t(tracer.trace(camera.position(),
+                                                       camera.direction(float(x) + jitter.x, float(y) + jitter.y), rng,
+                                                       frame.sample(x, y, s)));
                 }
                 if (frame.hasReference()) {
                     glm::dvec3 sum(0.0);
@@ -88,7 +88,8 @@ SampleFrame SequenceRenderer::render(int frameIndex, const ProgressCallback& pro
                         rays += std::uint64_t(referenceTracer.trace(
                             camera.position(), camera.direction(float(x) + jitter.x, float(y) + jitter.y), rng,
                             scratch));
-                        for (int c = 0; c < 3; ++c) sum[c] += double(scratch[channel::kDiffuse + c] + scratch[channel::kSpecular + c]);
+                        for (int c = 0; c < 3; ++c)
+                            sum[c] += double(scratch[channel::kDiffuse + c] + scratch[channel::kSpecular + c]);
                     }
                     float* ref = frame.reference(x, y);
                     for (int c = 0; c < 3; ++c) ref[c] = float(sum[c] / double(settings_.referenceSpp));

@@ -36,8 +36,7 @@ public:
     // t - 1 was the previous frame rendered by this renderer. `stop`, asked before each row on
     // one thread, abandons the frame when it returns true: render() then throws
     // affinity::Interrupted (for Ctrl-C; a frame can take minutes).
-    SampleFrame render(int frameIndex, const ProgressCallback& progress = {},
-                       const std::function<bool()>& stop = {});
+    SampleFrame render(int frameIndex, const ProgressCallback& progress = {}, const std::function<bool()>& stop = {});
 
     // Rays cast so far (camera, bounce and shadow rays), for throughput figures.
     std::uint64_t raysCast() const { return raysCast_; }

@@ -52,12 +52,12 @@ void addFace(Mesh& m, glm::vec3 a, glm::vec3 b, float offset) {
 Mesh makeBox() {
     Mesh m;
     const glm::vec3 x(1, 0, 0), y(0, 1, 0), z(0, 0, 1);
-    addFace(m, y, z, 1.0f);   // +X
-    addFace(m, z, y, 1.0f);   // -X (z x y = -x)
-    addFace(m, z, x, 1.0f);   // +Y
-    addFace(m, x, z, 1.0f);   // -Y
-    addFace(m, x, y, 1.0f);   // +Z
-    addFace(m, y, x, 1.0f);   // -Z
+    addFace(m, y, z, 1.0f);  // +X
+    addFace(m, z, y, 1.0f);  // -X (z x y = -x)
+    addFace(m, z, x, 1.0f);  // +Y
+    addFace(m, x, z, 1.0f);  // -Y
+    addFace(m, x, y, 1.0f);  // +Z
+    addFace(m, y, x, 1.0f);  // -Z
     return m;
 }
 
@@ -97,14 +97,19 @@ Mesh makeCylinder() {
 }  // namespace
 
 const Mesh& shapeMesh(ShapeType shape) {
-    static const Mesh sphere = makeSphere(), box = makeBox(), quad = makeQuad(),
-                      cylinder = makeCylinder(), disk = makeDisk();
+    static const Mesh sphere = makeSphere(), box = makeBox(), quad = makeQuad(), cylinder = makeCylinder(),
+                      disk = makeDisk();
     switch (shape) {
-        case ShapeType::Sphere: return sphere;
-        case ShapeType::Box: return box;
-        case ShapeType::Quad: return quad;
-        case ShapeType::Cylinder: return cylinder;
-        case ShapeType::Disk: return disk;
+    case ShapeType::Sphere:
+        return sphere;
+    case ShapeType::Box:
+        return box;
+    case ShapeType::Quad:
+        return quad;
+    case ShapeType::Cylinder:
+        return cylinder;
+    case ShapeType::Disk:
+        return disk;
     }
     return sphere;
 }

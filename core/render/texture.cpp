@@ -14,9 +14,7 @@ constexpr int kNoiseOctaves = 4;
 // defined (and NaN harmless) for garbage input.
 constexpr double kLatticeLimit = 1e9;
 
-double sanitizeCoordinate(double x) {
-    return std::isfinite(x) ? std::clamp(x, -kLatticeLimit, kLatticeLimit) : 0.0;
-}
+double sanitizeCoordinate(double x) { return std::isfinite(x) ? std::clamp(x, -kLatticeLimit, kLatticeLimit) : 0.0; }
 
 // Value in [0, 1) attached to an integer lattice point of one octave.
 double latticeValue(std::int64_t x, std::int64_t y, std::int64_t z, int octave) {
@@ -46,8 +44,8 @@ double valueNoise(const glm::dvec3& p, int octave) {
     double corners[2][2];
     for (int dz = 0; dz < 2; ++dz) {
         for (int dy = 0; dy < 2; ++dy) {
-            corners[dz][dy] = lerp(latticeValue(x0, y0 + dy, z0 + dz, octave),
-                                   latticeValue(x0 + 1, y0 + dy, z0 + dz, octave), u);
+            corners[dz][dy] =
+                lerp(latticeValue(x0, y0 + dy, z0 + dz, octave), latticeValue(x0 + 1, y0 + dy, z0 + dz, octave), u);
         }
     }
     return lerp(lerp(corners[0][0], corners[0][1], v), lerp(corners[1][0], corners[1][1], v), w);
@@ -60,8 +58,7 @@ double fractalNoise(const glm::dvec3& p) {
     double amplitude = 1.0;
     double frequency = 1.0;
     for (int octave = 0; octave < kNoiseOctaves; ++octave) {
-        const glm::dvec3 q(sanitizeCoordinate(p.x * frequency),
-                           sanitizeCoordinate(p.y * frequency),
+        const glm::dvec3 q(sanitizeCoordinate(p.x * frequency), sanitizeCoordinate(p.y * frequency),
                            sanitizeCoordinate(p.z * frequency));
         sum += amplitude * valueNoise(q, octave);
         amplitudeSum += amplitude;
@@ -89,8 +86,7 @@ glm::vec3 Texture::evaluate(const glm::vec2& uv, const glm::vec3& objectPosition
     case TextureType::Noise: {
         const auto t = float(fractalNoise(glm::dvec3(objectPosition) * double(scale)));
         // Clamped so that float rounding cannot step outside the documented range.
-        return glm::clamp(colorA + (colorB - colorA) * t, glm::min(colorA, colorB),
-                          glm::max(colorA, colorB));
+        return glm::clamp(colorA + (colorB - colorA) * t, glm::min(colorA, colorB), glm::max(colorA, colorB));
     }
     }
     return colorA;

@@ -57,8 +57,8 @@ std::uint64_t checkedElementCount(const NamedTensor& tensor) {
     const std::size_t other = isFloat ? tensor.ints.size() : tensor.floats.size();
     if (held != count || other != 0) {
         throw Error(label + " holds " + std::to_string(tensor.floats.size()) + " floats and " +
-                    std::to_string(tensor.ints.size()) + " ints, but its shape needs " +
-                    std::to_string(count) + (isFloat ? " floats" : " ints") + " only");
+                    std::to_string(tensor.ints.size()) + " ints, but its shape needs " + std::to_string(count) +
+                    (isFloat ? " floats" : " ints") + " only");
     }
     return count;
 }

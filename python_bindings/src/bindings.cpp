@@ -77,9 +77,7 @@ py::array_t<float> arrayOwning(std::vector<float>&& values, std::vector<py::ssiz
 
 namespace {
 
-py::array_t<float> matrixArray(const Matrix4& m) {
-    return arrayOwning(std::vector<float>(m.begin(), m.end()), {4, 4});
-}
+py::array_t<float> matrixArray(const Matrix4& m) { return arrayOwning(std::vector<float>(m.begin(), m.end()), {4, 4}); }
 
 // Scene names are bytes in the file; surrogateescape keeps any non-UTF-8 name round-tripping.
 py::str decodeName(const std::string& name) {
@@ -90,8 +88,7 @@ py::str decodeName(const std::string& name) {
 
 std::string encodeName(const py::handle& value, const std::string& key) {
     if (!py::isinstance<py::str>(value)) {
-        throw py::type_error(key + " must be a str, got " +
-                             std::string(py::str(py::type::of(value).attr("__name__"))));
+        throw py::type_error(key + " must be a str, got " + std::string(py::str(py::type::of(value).attr("__name__"))));
     }
     PyObject* bytes = PyUnicode_AsEncodedString(value.ptr(), "utf-8", "surrogateescape");
     if (bytes == nullptr) throw py::error_already_set();
@@ -116,9 +113,8 @@ py::dict frameToDict(SampleFrame&& frame) {
                             : py::object(arrayOwning(std::move(frame.samples()), {h, w, spp, kFeatureCount}));
     result["motion"] = arrayOwning(std::move(frame.motion()), {h, w, 2});
     result["valid"] = arrayOwning(std::move(frame.valid()), {h, w});
-    result["reference"] = hasReference
-                              ? py::object(arrayOwning(std::move(frame.reference()), {h, w, 3}))
-                              : py::object(py::none());
+    result["reference"] =
+        hasReference ? py::object(arrayOwning(std::move(frame.reference()), {h, w, 3})) : py::object(py::none());
     result["info"] = std::move(info);
     return result;
 }
@@ -136,17 +132,15 @@ std::string shapeText(const py::array& array) {
 
 // A C-contiguous float32 view (copied only when the input is strided) after checking the
 // dtype and shape; expected dims of -1 are free. `shapeName` spells the expected shape.
-FloatArray floatArray(const py::handle& value, const std::string& key,
-                                                  const std::vector<py::ssize_t>& expected,
-                                                  const std::string& shapeName) {
+FloatArray floatArray(const py::handle& value, const std::string& key, const std::vector<py::ssize_t>& expected,
+                      const std::string& shapeName) {
     if (!py::isinstance<py::array>(value)) {
         throw py::type_error(key + " must be a numpy float32 array, got " +
                              std::string(py::str(py::type::of(value).attr("__name__"))));
     }
     const auto array = py::reinterpret_borrow<py::array>(value);
     if (!py::isinstance<py::array_t<float>>(array)) {
-        throw py::type_error(key + " must have dtype float32, got " +
-                             std::string(py::str(array.dtype())));
+        throw py::type_error(key + " must have dtype float32, got " + std::string(py::str(array.dtype())));
     }
     bool matches = array.ndim() == py::ssize_t(expected.size());
     for (std::size_t d = 0; matches && d < expected.size(); ++d) {
@@ -174,8 +168,8 @@ long long integer(const py::handle& value, const std::string& key, long long low
     const long long result = PyLong_AsLongLongAndOverflow(number.ptr(), &overflow);
     if (result == -1 && PyErr_Occurred()) throw py::error_already_set();
     if (overflow != 0 || result < low || result > high) {
-        throw py::value_error(key + " is " + std::string(py::str(number)) + ", expected " +
-                              std::to_string(low) + ".." + std::to_string(high));
+        throw py::value_error(key + " is " + std::string(py::str(number)) + ", expected " + std::to_string(low) + ".." +
+                              std::to_string(high));
     }
     return result;
 }
@@ -190,8 +184,7 @@ std::uint64_t seedValue(const py::handle& value, const std::string& key) {
     const unsigned long long seed = PyLong_AsUnsignedLongLong(number.ptr());
     if (seed == static_cast<unsigned long long>(-1) && PyErr_Occurred()) {
         PyErr_Clear();
-        throw py::value_error(key + " is " + std::string(py::str(number)) +
-                              ", expected an integer in [0, 2**64)");
+        throw py::value_error(key + " is " + std::string(py::str(number)) + ", expected an integer in [0, 2**64)");
     }
     return seed;
 }
@@ -203,8 +196,7 @@ Matrix4 matrixValue(const py::handle& value, const std::string& key) {
     return m;
 }
 
-void checkKeys(const py::dict& dict, const std::string& what,
-               const std::vector<std::string>& allowed) {
+void checkKeys(const py::dict& dict, const std::string& what, const std::vector<std::string>& allowed) {
     for (const auto& item : dict) {
         const std::string key = py::str(item.first);
         bool known = false;
@@ -231,21 +223,16 @@ FrameInfo infoFromDict(const py::handle& value) {
     }
     const auto dict = py::reinterpret_borrow<py::dict>(value);
     const std::string what = "frame['info']";
-    checkKeys(dict, what, {"scene_name", "frame_index", "reference_spp", "seed",
-                           "world_to_camera", "camera_to_clip"});
+    checkKeys(dict, what, {"scene_name", "frame_index", "reference_spp", "seed", "world_to_camera", "camera_to_clip"});
     const auto key = [&](const char* name) { return what + "['" + name + "']"; };
     FrameInfo info;
     info.sceneName = encodeName(requireKey(dict, what, "scene_name"), key("scene_name"));
     constexpr long long kIntMax = 2147483647;
-    info.frameIndex =
-        int(integer(requireKey(dict, what, "frame_index"), key("frame_index"), 0, kIntMax));
-    info.referenceSpp =
-        int(integer(requireKey(dict, what, "reference_spp"), key("reference_spp"), 0, kIntMax));
+    info.frameIndex = int(integer(requireKey(dict, what, "frame_index"), key("frame_index"), 0, kIntMax));
+    info.referenceSpp = int(integer(requireKey(dict, what, "reference_spp"), key("reference_spp"), 0, kIntMax));
     info.seed = seedValue(requireKey(dict, what, "seed"), key("seed"));
-    info.worldToCamera =
-        matrixValue(requireKey(dict, what, "world_to_camera"), key("world_to_camera"));
-    info.cameraToClip =
-        matrixValue(requireKey(dict, what, "camera_to_clip"), key("camera_to_clip"));
+    info.worldToCamera = matrixValue(requireKey(dict, what, "world_to_camera"), key("world_to_camera"));
+    info.cameraToClip = matrixValue(requireKey(dict, what, "camera_to_clip"), key("camera_to_clip"));
     return info;
 }
 
@@ -254,19 +241,16 @@ FrameInfo infoFromDict(const py::handle& value) {
 FrameArrays frameArraysFromDict(const py::dict& dict) {
     const std::string what = "frame";
     checkKeys(dict, what, {"samples", "motion", "valid", "reference", "info"});
-    const auto samples = floatArray(requireKey(dict, what, "samples"), "frame['samples']",
-                                    {-1, -1, -1, kFeatureCount}, "(H, W, S, 18)");
+    const auto samples =
+        floatArray(requireKey(dict, what, "samples"), "frame['samples']", {-1, -1, -1, kFeatureCount}, "(H, W, S, 18)");
     const py::ssize_t h = samples.shape(0), w = samples.shape(1), spp = samples.shape(2);
     if (h < 1 || w < 1 || spp < 1 || spp > SampleFrame::kMaxSpp || h > 1 << 30 || w > 1 << 30) {
-        throw py::value_error("frame['samples'] has shape " + shapeText(samples) +
-                              ", expected H, W >= 1 and S in 1.." +
+        throw py::value_error("frame['samples'] has shape " + shapeText(samples) + ", expected H, W >= 1 and S in 1.." +
                               std::to_string(SampleFrame::kMaxSpp));
     }
     const std::string hw = std::to_string(h) + ", " + std::to_string(w);
-    const auto motion = floatArray(requireKey(dict, what, "motion"), "frame['motion']", {h, w, 2},
-                                   "(" + hw + ", 2)");
-    const auto valid =
-        floatArray(requireKey(dict, what, "valid"), "frame['valid']", {h, w}, "(" + hw + ")");
+    const auto motion = floatArray(requireKey(dict, what, "motion"), "frame['motion']", {h, w, 2}, "(" + hw + ", 2)");
+    const auto valid = floatArray(requireKey(dict, what, "valid"), "frame['valid']", {h, w}, "(" + hw + ")");
     const py::object referenceValue =
         dict.contains("reference") ? py::object(dict["reference"]) : py::object(py::none());
     const bool hasReference = !referenceValue.is_none();
@@ -275,8 +259,13 @@ FrameArrays frameArraysFromDict(const py::dict& dict) {
         reference = floatArray(referenceValue, "frame['reference']", {h, w, 3}, "(" + hw + ", 3)");
     }
     FrameArrays arrays{samples, motion, valid, reference, {}};
-    arrays.view = SampleFrameView{int(w), int(h), int(spp), arrays.samples.data(), arrays.motion.data(),
-                                  arrays.valid.data(), infoFromDict(requireKey(dict, what, "info"))};
+    arrays.view = SampleFrameView{int(w),
+                                  int(h),
+                                  int(spp),
+                                  arrays.samples.data(),
+                                  arrays.motion.data(),
+                                  arrays.valid.data(),
+                                  infoFromDict(requireKey(dict, what, "info"))};
     return arrays;
 }
 
@@ -343,13 +332,11 @@ PYBIND11_MODULE(_core, m) {
             }
             return frameToDict(std::move(frame));
         },
-        py::arg("path"),
-        "Reads a frame file into a dict of numpy arrays (see affinity_core.read_frame).");
+        py::arg("path"), "Reads a frame file into a dict of numpy arrays (see affinity_core.read_frame).");
 
     m.def(
         "write_frame",
-        [](const std::filesystem::path& path, const py::dict& frame,
-           const std::string& compression) {
+        [](const std::filesystem::path& path, const py::dict& frame, const std::string& compression) {
             const ExrCompression mode = compressionFromName(compression);
             const SampleFrame native = frameFromDict(frame);
             py::gil_scoped_release release;
@@ -360,11 +347,9 @@ PYBIND11_MODULE(_core, m) {
 
     m.def("bfloat16_supported", &bfloat16Supported,
           "Whether this CPU can run models with precision='bf16' (AVX512-BF16).");
-    m.def("frame_file_name", &frameFileName, py::arg("frame_index"),
-          "'frame_0007.exr' for frame index 7.");
+    m.def("frame_file_name", &frameFileName, py::arg("frame_index"), "'frame_0007.exr' for frame index 7.");
     m.def(
-        "list_frame_files",
-        [](const std::filesystem::path& directory) { return listFrameFiles(directory.string()); },
+        "list_frame_files", [](const std::filesystem::path& directory) { return listFrameFiles(directory.string()); },
         py::arg("directory"), "Frame files of a sequence folder, in frame order.");
 
     py::class_<Model>(m, "Model", "A denoising model (weights + structure), see docs/MODEL.md.")
@@ -378,10 +363,10 @@ PYBIND11_MODULE(_core, m) {
             [](const std::filesystem::path& path, const std::string& precision) {
                 return Model::fromFile(path.string(), precisionFromName(precision));
             },
-            py::arg("path"), py::arg("precision") = "auto",
-            "Loads a .affw weights file; precision as for built_in.")
+            py::arg("path"), py::arg("precision") = "auto", "Loads a .affw weights file; precision as for built_in.")
         // What it computes in: 'fp32' or 'bf16' ('auto' resolved).
-        .def_property_readonly("precision", [](const Model& model) { return std::string(precisionName(model.precision())); })
+        .def_property_readonly("precision",
+                               [](const Model& model) { return std::string(precisionName(model.precision())); })
         .def_property_readonly("source", &Model::source)
         .def_property_readonly("kernels", &Model::kernels)
         .def_property_readonly("affinity_features", &Model::affinityFeatures)
@@ -391,14 +376,15 @@ PYBIND11_MODULE(_core, m) {
         .def("flops_per_pixel", &Model::flopsPerPixel, py::arg("spp"));
 
     py::class_<Denoiser>(m, "Denoiser", "Stateful sequence denoiser (see affinity_core.Denoiser).")
-        .def(py::init([](Model model, bool useHistory, bool temporalKernel, bool allKernels) {
-                 // The benchmark's ablations (affinity_core.Denoiser(ablation=...)): internal to the library.
-                 Denoiser denoiser = ablatedDenoiser(std::move(model), Ablation{useHistory, temporalKernel, allKernels});
-                 denoiser.setInterruptCheck(pythonSignalRaised);
-                 return denoiser;
-             }),
-             py::arg("model"), py::kw_only(), py::arg("use_history") = true, py::arg("temporal_kernel") = true,
-             py::arg("all_kernels") = true)
+        .def(
+            py::init([](Model model, bool useHistory, bool temporalKernel, bool allKernels) {
+                // The benchmark's ablations (affinity_core.Denoiser(ablation=...)): internal to the library.
+                Denoiser denoiser = ablatedDenoiser(std::move(model), Ablation{useHistory, temporalKernel, allKernels});
+                denoiser.setInterruptCheck(pythonSignalRaised);
+                return denoiser;
+            }),
+            py::arg("model"), py::kw_only(), py::arg("use_history") = true, py::arg("temporal_kernel") = true,
+            py::arg("all_kernels") = true)
         .def(
             "denoise",
             [](Denoiser& self, const py::dict& frame) {
@@ -417,8 +403,8 @@ PYBIND11_MODULE(_core, m) {
                     throw py::value_error("denoise_file: " + std::to_string(self.pending().spp) +
                                           " samples added with add_samples() wait for finish_frame()");
                 DenoiseReport report;
-                DenoisedFile file = interruptible(
-                    [&] { return denoiseFrameFile(self, path.string(), NoisyMean::Always, &report); });
+                DenoisedFile file =
+                    interruptible([&] { return denoiseFrameFile(self, path.string(), NoisyMean::Always, &report); });
                 const py::ssize_t h = file.frame.height(), w = file.frame.width();
                 py::dict result = frameToDict(std::move(file.frame));
                 result["noisy"] = arrayOwning(std::move(file.noisy), {h, w, 3});
@@ -431,17 +417,18 @@ PYBIND11_MODULE(_core, m) {
                 // (H, W, S, 18), or (H, W, 18) for one sample; read in place during the call.
                 const bool single =
                     py::isinstance<py::array>(value) && py::reinterpret_borrow<py::array>(value).ndim() == 3;
-                const auto samples = single ? floatArray(value, "samples", {-1, -1, kFeatureCount}, "(H, W, 18)")
-                                            : floatArray(value, "samples", {-1, -1, -1, kFeatureCount},
-                                                         "(H, W, S, 18) or (H, W, 18)");
+                const auto samples =
+                    single ? floatArray(value, "samples", {-1, -1, kFeatureCount}, "(H, W, 18)")
+                           : floatArray(value, "samples", {-1, -1, -1, kFeatureCount}, "(H, W, S, 18) or (H, W, 18)");
                 const py::ssize_t h = samples.shape(0), w = samples.shape(1), spp = single ? 1 : samples.shape(2);
                 if (h < 1 || w < 1 || spp < 1 || h > 1 << 30 || w > 1 << 30 || spp > SampleFrame::kMaxSpp)
                     throw py::value_error("samples has shape " + shapeText(samples) +
                                           ", expected H, W >= 1 and S in 1.." + std::to_string(SampleFrame::kMaxSpp));
                 const Denoiser::PendingFrame pending = self.pending();
                 if (pending.spp > 0 && (pending.width != w || pending.height != h))
-                    throw py::value_error("samples has shape " + shapeText(samples) + " but the frame's first batch was " +
-                                          std::to_string(pending.height) + "x" + std::to_string(pending.width));
+                    throw py::value_error("samples has shape " + shapeText(samples) +
+                                          " but the frame's first batch was " + std::to_string(pending.height) + "x" +
+                                          std::to_string(pending.width));
                 if (pending.spp + spp > SampleFrame::kMaxSpp)
                     throw py::value_error("a frame holds at most " + std::to_string(SampleFrame::kMaxSpp) +
                                           " samples per pixel; " + std::to_string(pending.spp) + " were added");

@@ -94,8 +94,8 @@ void bindMetrics(py::module_& m) {
           "0.5 * mean (a - b)^2 / (b^2 + 0.01) (see affinity_core.metrics.relmse).");
     m.def("psnr", &pairMetric<tonemappedPsnr>, py::arg("image"), py::arg("reference"),
           "PSNR in dB after x / (1 + x) tone mapping (see affinity_core.metrics.psnr).");
-    m.def("temporal_error", &temporalErrorOf, py::arg("output"), py::arg("previous_output"),
-          py::arg("reference"), py::arg("previous_reference"), py::arg("motion"), py::arg("valid"),
+    m.def("temporal_error", &temporalErrorOf, py::arg("output"), py::arg("previous_output"), py::arg("reference"),
+          py::arg("previous_reference"), py::arg("motion"), py::arg("valid"),
           "Flicker relative to the reference's own change (see affinity_core.metrics.temporal_error).");
     m.def("warping_error", &warpingErrorOf, py::arg("image"), py::arg("previous_image"), py::arg("motion"),
           py::arg("valid"), "Warping error of Lai et al. 2018 (see affinity_core.metrics.warping_error).");

@@ -196,10 +196,10 @@ TEST(AffinityFilter, MatchesDoubleReference) {
         for (const int tapSize : {3, 5, 7}) {
             for (const int dilation : {1, 2, 4}) {
                 const Scene s = randomScene(size.height, size.width, 8, rng);
-                const double difference = maxRelativeDifference(run(s, tapSize, dilation, false),
-                                                                reference(s, tapSize, dilation, false));
-                EXPECT_LT(difference, 1e-5) << size.height << "x" << size.width << " T=" << tapSize
-                                            << " d=" << dilation;
+                const double difference =
+                    maxRelativeDifference(run(s, tapSize, dilation, false), reference(s, tapSize, dilation, false));
+                EXPECT_LT(difference, 1e-5)
+                    << size.height << "x" << size.width << " T=" << tapSize << " d=" << dilation;
             }
         }
     }
@@ -213,8 +213,8 @@ TEST(AffinityFilter, TemporalMatchesDoubleReference) {
                 const Scene s = randomScene(size.height, size.width, 8, rng);
                 const double difference =
                     maxRelativeDifference(run(s, tapSize, dilation, true), reference(s, tapSize, dilation, true));
-                EXPECT_LT(difference, 1e-5) << size.height << "x" << size.width << " T=" << tapSize
-                                            << " d=" << dilation;
+                EXPECT_LT(difference, 1e-5)
+                    << size.height << "x" << size.width << " T=" << tapSize << " d=" << dilation;
             }
         }
     }
@@ -229,7 +229,8 @@ TEST(AffinityFilter, EveryFeatureCountMatchesReference) {
             for (const int tapSize : {1, 5}) {
                 Scene s = randomScene(19, 23, features, rng);
                 // Keep a^2 ||df||^2 moderate however many features there are.
-                for (std::size_t i = 0; i < s.bandwidth.size(); ++i) s.bandwidth.data()[i] /= std::sqrt(float(features));
+                for (std::size_t i = 0; i < s.bandwidth.size(); ++i)
+                    s.bandwidth.data()[i] /= std::sqrt(float(features));
                 const double difference =
                     maxRelativeDifference(run(s, tapSize, 2, temporal), reference(s, tapSize, 2, temporal));
                 EXPECT_LT(difference, 1e-5) << "F=" << features << " temporal=" << temporal << " T=" << tapSize;
@@ -374,11 +375,10 @@ TEST(AffinityFilter, InstructionSetsAgreeBitwise) {
     for (const Size size : {Size{9, 200}, Size{5, 129}, Size{3, 7}})
         for (const int features : {8, 3, 17})
             for (const bool temporal : {false, true}) {
-                SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " F=" +
-                             std::to_string(features) + (temporal ? " temporal" : ""));
+                SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) +
+                             " F=" + std::to_string(features) + (temporal ? " temporal" : ""));
                 Scene s = randomScene(size.height, size.width, features, rng);
-                const TemporalTaps taps{&s.temporalBandwidth, &s.warpedOutput, &s.warpedFeatures,
-                                        &s.warpedValid};
+                const TemporalTaps taps{&s.temporalBandwidth, &s.warpedOutput, &s.warpedFeatures, &s.warpedValid};
                 FeatureMap narrow(size.height, size.width, 3), wide(size.height, size.width, 3);
                 affinityFilterRows(s.radiance, s.kernel(), 5, 2, temporal ? &taps : nullptr, size.height, 0,
                                    size.height, narrow, ConvIsa::Avx2);
@@ -529,7 +529,8 @@ TEST(WarpBilinear, IntegerMotionShiftsWithBorderClamping) {
             for (int x = 0; x < 14; ++x) {
                 const int sx = std::clamp(x + mx, 0, 13), sy = std::clamp(y + my, 0, 10);
                 for (int c = 0; c < 3; ++c) {
-                    ASSERT_EQ(out.pixel(y, x)[c], previous.pixel(sy, sx)[c]) << mx << "," << my << " at " << x << "," << y;
+                    ASSERT_EQ(out.pixel(y, x)[c], previous.pixel(sy, sx)[c])
+                        << mx << "," << my << " at " << x << "," << y;
                 }
             }
         }
@@ -585,8 +586,8 @@ TEST(WarpBilinear, NanMotionReadsAsNoMotionAndHugeMotionClampsToTheBorder) {
     std::mt19937 rng(59);
     const FeatureMap previous = randomMap(7, 9, 3, -3.0f, 3.0f, rng);
     std::vector<float> motion = uniformMotion(7, 9, 0.25f, 0.0f);
-    motion[2 * (3 * 9 + 4)] = std::nanf("");        // x NaN: no motion in x
-    motion[2 * (2 * 9 + 6) + 1] = std::nanf("");    // y NaN: x still moves a quarter pixel
+    motion[2 * (3 * 9 + 4)] = std::nanf("");      // x NaN: no motion in x
+    motion[2 * (2 * 9 + 6) + 1] = std::nanf("");  // y NaN: x still moves a quarter pixel
     motion[2 * (5 * 9 + 2) + 1] = 1e30f;
     motion[2 * (1 * 9 + 1)] = -std::numeric_limits<float>::infinity();
     FeatureMap out;
@@ -611,7 +612,8 @@ TEST(WarpBilinear, RowsIntoARingEqualTheWholeImage) {
         const int end = std::min(height, begin + 4);
         warpBilinearRows(previous, motion.data(), begin, end, ring);
         for (int y = begin; y < end; ++y)
-            ASSERT_EQ(std::memcmp(ring.pixel(y % 4, 0), whole.pixel(y, 0), sizeof(float) * 5 * width), 0) << "row " << y;
+            ASSERT_EQ(std::memcmp(ring.pixel(y % 4, 0), whole.pixel(y, 0), sizeof(float) * 5 * width), 0)
+                << "row " << y;
     }
     FeatureMap tooShort(3, width, 5);
     EXPECT_THROW(warpBilinearRows(previous, motion.data(), 0, 4, tooShort), Error);
@@ -636,7 +638,8 @@ TEST(WarpBilinear, ResultsDoNotDependOnTheThreadCount) {
 // The Catmull-Rom spline through p0..p3 at t in [0, 1] in its polynomial form (not the tap
 // weights the warp uses), in double.
 double catmullRom(double p0, double p1, double p2, double p3, double t) {
-    return 0.5 * (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t * t + (3 * p1 - p0 - 3 * p2 + p3) * t * t * t);
+    return 0.5 *
+           (2 * p1 + (p2 - p0) * t + (2 * p0 - 5 * p1 + 4 * p2 - p3) * t * t + (3 * p1 - p0 - 3 * p2 + p3) * t * t * t);
 }
 
 TEST(WarpCatmullRom, IntegerMotionShiftsWithBorderClamping) {
@@ -649,7 +652,8 @@ TEST(WarpCatmullRom, IntegerMotionShiftsWithBorderClamping) {
             for (int x = 0; x < 14; ++x) {
                 const int sx = std::clamp(x + mx, 0, 13), sy = std::clamp(y + my, 0, 10);
                 for (int c = 0; c < 3; ++c)
-                    ASSERT_EQ(out.pixel(y, x)[c], previous.pixel(sy, sx)[c]) << mx << "," << my << " at " << x << "," << y;
+                    ASSERT_EQ(out.pixel(y, x)[c], previous.pixel(sy, sx)[c])
+                        << mx << "," << my << " at " << x << "," << y;
             }
     }
 }
@@ -675,13 +679,16 @@ TEST(WarpCatmullRom, IsTheClampedBicubicSplineOfTheSixteenTaps) {
                 for (int c = 0; c < count; ++c) {
                     double rows[4];
                     for (int j = 0; j < 4; ++j)
-                        rows[j] = catmullRom(at(y0 - 1 + j, x0 - 1, c), at(y0 - 1 + j, x0, c), at(y0 - 1 + j, x0 + 1, c),
-                                             at(y0 - 1 + j, x0 + 2, c), px - x0);
+                        rows[j] = catmullRom(at(y0 - 1 + j, x0 - 1, c), at(y0 - 1 + j, x0, c),
+                                             at(y0 - 1 + j, x0 + 1, c), at(y0 - 1 + j, x0 + 2, c), px - x0);
                     const double spline = catmullRom(rows[0], rows[1], rows[2], rows[3], py - y0);
-                    const double low = std::min({at(y0, x0, c), at(y0, x0 + 1, c), at(y0 + 1, x0, c), at(y0 + 1, x0 + 1, c)});
-                    const double high = std::max({at(y0, x0, c), at(y0, x0 + 1, c), at(y0 + 1, x0, c), at(y0 + 1, x0 + 1, c)});
+                    const double low =
+                        std::min({at(y0, x0, c), at(y0, x0 + 1, c), at(y0 + 1, x0, c), at(y0 + 1, x0 + 1, c)});
+                    const double high =
+                        std::max({at(y0, x0, c), at(y0, x0 + 1, c), at(y0 + 1, x0, c), at(y0 + 1, x0 + 1, c)});
                     clamped += spline < low || spline > high;
-                    ASSERT_NEAR(out.pixel(y, x)[c], std::clamp(spline, low, high), 2e-5) << x << "," << y << " channel " << c;
+                    ASSERT_NEAR(out.pixel(y, x)[c], std::clamp(spline, low, high), 2e-5)
+                        << x << "," << y << " channel " << c;
                 }
             }
         EXPECT_GT(clamped, 0) << "random data should exercise the clamp";
@@ -723,8 +730,10 @@ TEST(WarpCatmullRom, KeepsFineDetailThatBilinearBlurs) {
         for (int x = 8; x < width - 8; ++x) error += std::abs(back.pixel(2, x)[0] - previous.pixel(2, x)[0]);
         return error / (width - 16);
     };
-    const double bilinear = roundTripError([](const FeatureMap& p, const float* m, FeatureMap& o) { warpBilinear(p, m, o); });
-    const double catmullRom = roundTripError([](const FeatureMap& p, const float* m, FeatureMap& o) { warpCatmullRom(p, m, o); });
+    const double bilinear =
+        roundTripError([](const FeatureMap& p, const float* m, FeatureMap& o) { warpBilinear(p, m, o); });
+    const double catmullRom =
+        roundTripError([](const FeatureMap& p, const float* m, FeatureMap& o) { warpCatmullRom(p, m, o); });
     EXPECT_GT(bilinear, 0.25);  // mean |sin| is 0.64: half the contrast lost
     EXPECT_LT(catmullRom, 0.5 * bilinear) << "bilinear " << bilinear;
 }
@@ -763,7 +772,8 @@ TEST(WarpCatmullRom, RowsIntoARingEqualTheWholeImageOnAnyThreadCount) {
         const int end = std::min(height, begin + 4);
         warpCatmullRomRows(previous, motion.data(), begin, end, ring);
         for (int y = begin; y < end; ++y)
-            ASSERT_EQ(std::memcmp(ring.pixel(y % 4, 0), whole.pixel(y, 0), sizeof(float) * 3 * width), 0) << "row " << y;
+            ASSERT_EQ(std::memcmp(ring.pixel(y % 4, 0), whole.pixel(y, 0), sizeof(float) * 3 * width), 0)
+                << "row " << y;
     }
     FeatureMap tooShort(3, width, 3);
     EXPECT_THROW(warpCatmullRomRows(previous, motion.data(), 0, 4, tooShort), Error);

@@ -29,8 +29,8 @@ struct RingRecord {
 };
 
 void simulate(int height, int bandRows, const std::vector<int>& radii) {
-    const std::string where = "height " + std::to_string(height) + ", band " + std::to_string(bandRows) +
-                              ", stages " + std::to_string(radii.size());
+    const std::string where = "height " + std::to_string(height) + ", band " + std::to_string(bandRows) + ", stages " +
+                              std::to_string(radii.size());
     const int ringRows = bandRingRows(height, bandRows, radii);
     ASSERT_LE(ringRows, height) << where;
     RingRecord parameters(ringRows), warped(ringRows);

@@ -51,7 +51,8 @@ TEST_P(Bf16GemmTest, MatchesDoubleSumsOfTheRoundedOperands) {
     for (float& v : x) v = normal(rng) * 3.0f;
     const std::size_t xStride = std::size_t(in) + 2, outStride = std::size_t(out) + 3;  // padded rows
     std::vector<std::uint16_t> xb(std::size_t(rows) * xStride, 0);
-    for (int r = 0; r < rows; ++r) convertToBf16(x.data() + std::size_t(r) * in, std::size_t(in), xb.data() + r * xStride);
+    for (int r = 0; r < rows; ++r)
+        convertToBf16(x.data() + std::size_t(r) * in, std::size_t(in), xb.data() + r * xStride);
     const PackedGemmBf16 packed(w.data(), out, in, leaky ? bias.data() : nullptr);
     const float sentinel = 12345.0f;
     std::vector<float> result(std::size_t(rows) * outStride, sentinel);

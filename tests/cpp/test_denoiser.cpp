@@ -132,7 +132,8 @@ TEST(Denoiser, OutputDoesNotDependOnSampleOrder) {
             for (int x = 0; x < f.width(); ++x) {
                 // Reverse the samples of every pixel.
                 for (int s = 0; s < f.spp() / 2; ++s)
-                    std::swap_ranges(f.sample(x, y, s), f.sample(x, y, s) + kFeatureCount, f.sample(x, y, f.spp() - 1 - s));
+                    std::swap_ranges(f.sample(x, y, s), f.sample(x, y, s) + kFeatureCount,
+                                     f.sample(x, y, f.spp() - 1 - s));
             }
     Denoiser a(randomModel(1)), b(randomModel(1));
     for (std::size_t t = 0; t < frames.size(); ++t)
@@ -186,7 +187,8 @@ Model identityFirstKernelsModel(unsigned seed) {
     auto tensors = test::randomModelTensors(shape, seed);
     for (auto& t : tensors)
         if (t.name == "unet.head.bias")
-            for (int k = 0; k + 1 < shape.kernels; ++k) t.floats[std::size_t(k * (shape.affinityFeatures + 2) + shape.affinityFeatures)] += 1e4f;
+            for (int k = 0; k + 1 < shape.kernels; ++k)
+                t.floats[std::size_t(k * (shape.affinityFeatures + 2) + shape.affinityFeatures)] += 1e4f;
     auto bytes = train::serializeWeights(tensors);
     return Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "identity-first-kernels model"),
                               Precision::Float32);
@@ -591,7 +593,8 @@ void expectBatchesGiveTheWholeFrameResult(Precision precision) {
                 for (int s = 1; s < f.spp(); ++s) {
                     f.sample(x, y, s)[channel::kDepth] = f.sample(x, y, 0)[channel::kDepth];
                     if (t == 0)
-                        for (int c = 0; c < 6; ++c) f.sample(x, y, s)[channel::kDiffuse + c] = f.sample(x, y, 0)[channel::kDiffuse + c];
+                        for (int c = 0; c < 6; ++c)
+                            f.sample(x, y, s)[channel::kDiffuse + c] = f.sample(x, y, 0)[channel::kDiffuse + c];
                 }
     }
     const std::vector<std::vector<int>> batchings = {{1, 1, 2}, {1, 1, 1, 1}, {4}};
@@ -600,15 +603,16 @@ void expectBatchesGiveTheWholeFrameResult(Precision precision) {
     for (std::size_t t = 0; t < frames.size(); ++t) {
         DenoiseReport report;
         const std::vector<float> expected = whole.denoise(frames[t]);
-        EXPECT_EQ(streamed(stream, frames[t], batchings[t], &report), expected)
-            << "frame " << t;
+        EXPECT_EQ(streamed(stream, frames[t], batchings[t], &report), expected) << "frame " << t;
         EXPECT_EQ(stream.pending().spp, 0);
         EXPECT_EQ(report.usedHistory, t > 0);
         EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
     }
 }
 
-TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) { expectBatchesGiveTheWholeFrameResult(Precision::Float32); }
+TEST(DenoiserStreaming, BatchesGiveTheWholeFrameResultBitForBit) {
+    expectBatchesGiveTheWholeFrameResult(Precision::Float32);
+}
 
 TEST(DenoiserBFloat16, BatchesGiveTheWholeFrameResultBitForBit) {
     if (!bfloat16Supported()) GTEST_SKIP() << "no AVX512-BF16 on this CPU";

@@ -61,8 +61,8 @@ std::vector<float> randomSamples(long long count, std::mt19937& rng) {
 }
 
 // The definition, term by term, in double precision.
-std::vector<double> referenceEmbedding(const std::vector<DenseLayer>& layers, const float* samples,
-                                       long long pixels, int spp, float depthScale, long long& badCount) {
+std::vector<double> referenceEmbedding(const std::vector<DenseLayer>& layers, const float* samples, long long pixels,
+                                       int spp, float depthScale, long long& badCount) {
     const int e = layers.back().out;
     std::vector<double> result(std::size_t(pixels) * e, 0.0);
     badCount = 0;
@@ -83,7 +83,8 @@ std::vector<double> referenceEmbedding(const std::vector<DenseLayer>& layers, co
                 std::vector<double> next(std::size_t(layer.out));
                 for (int o = 0; o < layer.out; ++o) {
                     double sum = layer.bias[o];
-                    for (int i = 0; i < layer.in; ++i) sum += double(layer.weight[std::size_t(o) * layer.in + i]) * h[i];
+                    for (int i = 0; i < layer.in; ++i)
+                        sum += double(layer.weight[std::size_t(o) * layer.in + i]) * h[i];
                     if (l + 1 < layers.size() && sum < 0) sum *= 0.01;
                     next[o] = sum;
                 }
@@ -133,7 +134,8 @@ TEST(Embedding, MatchesReference) {
         for (std::size_t i = 0; i < expected.size(); ++i) {
             // Values are O(1-10); float rounding through a few layers stays near 1e-6.
             if (!(std::abs(output.data()[i] - expected[i]) <= 1e-5 * (1.0 + std::abs(expected[i])))) {
-                if (bad < 3) ADD_FAILURE() << "value " << i << ": got " << output.data()[i] << ", expected " << expected[i];
+                if (bad < 3)
+                    ADD_FAILURE() << "value " << i << ": got " << output.data()[i] << ", expected " << expected[i];
                 ++bad;
             }
         }
@@ -154,7 +156,8 @@ TEST(Embedding, SampleOrderDoesNotMatter) {
         std::shuffle(order.begin(), order.end(), rng);
         for (int s = 0; s < spp; ++s)
             std::memcpy(permuted.data() + (std::size_t(p) * spp + s) * kFeatureCount,
-                        samples.data() + (std::size_t(p) * spp + order[s]) * kFeatureCount, kFeatureCount * sizeof(float));
+                        samples.data() + (std::size_t(p) * spp + order[s]) * kFeatureCount,
+                        kFeatureCount * sizeof(float));
     }
     FeatureMap a, b;
     embedding.apply(samples.data(), height, width, spp, 0.05f, a);
@@ -172,8 +175,11 @@ TEST(Embedding, BadRadianceIsZeroAndCounted) {
     const int height = 5, width = 7, spp = 4;
     std::vector<float> samples = randomSamples((long long)height * width * spp, rng);
     std::vector<float> cleaned = samples;
-    const float poison[] = {std::numeric_limits<float>::quiet_NaN(), std::numeric_limits<float>::infinity(),
-                            -std::numeric_limits<float>::infinity(), -1.0f, -1e-30f,
+    const float poison[] = {std::numeric_limits<float>::quiet_NaN(),
+                            std::numeric_limits<float>::infinity(),
+                            -std::numeric_limits<float>::infinity(),
+                            -1.0f,
+                            -1e-30f,
                             -std::numeric_limits<float>::signaling_NaN()};
     long long expectedCount = 0;
     std::uniform_int_distribution<int> pick(0, 5);
@@ -293,7 +299,8 @@ std::vector<float> greyFrame(int height, int width, Value value) {
     for (int y = 0; y < height; ++y)
         for (int x = 0; x < width; ++x)
             for (int c = 0; c < 3; ++c)
-                samples[(std::size_t(y) * width + x) * kFeatureCount + std::size_t(channel::kDiffuse + c)] = value(x, y);
+                samples[(std::size_t(y) * width + x) * kFeatureCount + std::size_t(channel::kDiffuse + c)] =
+                    value(x, y);
     return samples;
 }
 
@@ -309,7 +316,8 @@ TEST(Exposure, KeyIsTheGeometricMeanOfTheSquaresByHand) {
     const auto dim = greyFrame(16, 32, [](int x, int) { return x < 16 ? 0.0001f : 0.0004f; });  // key 0.0002
     EXPECT_NEAR(exposureOf(SampleBands(dim.data(), 16, 32, 1), 16), 6.5, 1e-5);
     // Partial squares average the pixels they have: a 20x18 frame, 4 squares, each uniform.
-    const auto partial = greyFrame(18, 20, [](int x, int y) { return (x < 16 ? 1.0f : 4.0f) * (y < 16 ? 1.0f : 9.0f); });
+    const auto partial =
+        greyFrame(18, 20, [](int x, int y) { return (x < 16 ? 1.0f : 4.0f) * (y < 16 ? 1.0f : 9.0f); });
     // Squares 1, 4, 9 and 36: key (1 * 4 * 9 * 36)^(1/4) = 1296^(1/4) = 6.
     EXPECT_NEAR(exposureOf(SampleBands(partial.data(), 18, 20, 1), 18), 0.64 / 6.0, 1e-6);
 }
@@ -352,8 +360,9 @@ TEST(Embedding, RejectsBadLayers) {
 
 TEST(FastLog1p, WithinFewUlps) {
     // Dense sweep over [0, 1e30] on a log scale plus exact edge values.
-    std::vector<float> values = {0.0f, 1e-45f, 1e-38f, 1e-30f, 1e-8f, 5.9604645e-8f, 1.1920929e-7f, 0.5f,
-                                 0.41421356f, 0.41421357f, 1.0f, 2.0f, 3.0f, 1e7f, 1.6777216e7f, 3.4028235e38f};
+    std::vector<float> values = {0.0f,          1e-45f, 1e-38f,       1e-30f,       1e-8f, 5.9604645e-8f,
+                                 1.1920929e-7f, 0.5f,   0.41421356f,  0.41421357f,  1.0f,  2.0f,
+                                 3.0f,          1e7f,   1.6777216e7f, 3.4028235e38f};
     for (double e = -40; e <= 30; e += 1e-4) values.push_back(float(std::pow(10.0, e)));
     while (values.size() % 8 != 0) values.push_back(0.0f);
     double worst = 0.0;

@@ -26,7 +26,8 @@ class ExrHeaderCheck : public ::testing::Test {
 protected:
     void SetUp() override {
         const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = fs::temp_directory_path() / ("affinity_test_exr_header_" + std::to_string(::getpid()) + "_" + test->name());
+        dir_ =
+            fs::temp_directory_path() / ("affinity_test_exr_header_" + std::to_string(::getpid()) + "_" + test->name());
         fs::remove_all(dir_);
         fs::create_directories(dir_);
         SampleFrame frame(3, 2, 1, false);

@@ -15,8 +15,7 @@ using namespace affinity::render;
 
 namespace {
 
-SampleFrame renderFrame(const Scene& scene, FeatureConvention convention, int size, int spp,
-                        int referenceSpp = 0) {
+SampleFrame renderFrame(const Scene& scene, FeatureConvention convention, int size, int spp, int referenceSpp = 0) {
     RenderSettings settings;
     settings.width = settings.height = size;
     settings.spp = spp;
@@ -80,13 +79,13 @@ TEST(FeatureConvention, RoughishMetalIsVForUsAndPassedThroughByCycles) {
     const SampleFrame cycles = renderFrame(scene, FeatureConvention::Cycles, 16, 2);
     forCentreSamples(cycles, [](const float* f) {
         EXPECT_EQ(f[channel::kSpecularBounce], 1.0f);
-        EXPECT_EQ(f[channel::kMetallic], 1.0f);                    // the first hit's
-        EXPECT_NEAR(f[channel::kRoughness], 0.1f, 1e-6f);          // the first hit's
+        EXPECT_EQ(f[channel::kMetallic], 1.0f);            // the first hit's
+        EXPECT_NEAR(f[channel::kRoughness], 0.1f, 1e-6f);  // the first hit's
         EXPECT_EQ(f[channel::kEmissive], 0.0f);
-        EXPECT_NEAR(f[channel::kNormal + 2], -1.0f, 1e-5f);        // the wall behind the camera
-        EXPECT_GT(f[channel::kDepth], 14.9f);                      // 5 to the metal + 10 back out,
-        EXPECT_LT(f[channel::kDepth], 15.6f);                      // a little longer off the mirror direction
-        for (int c = 0; c < 3; ++c)                                // Cycles multiplies the chain's tint in
+        EXPECT_NEAR(f[channel::kNormal + 2], -1.0f, 1e-5f);  // the wall behind the camera
+        EXPECT_GT(f[channel::kDepth], 14.9f);                // 5 to the metal + 10 back out,
+        EXPECT_LT(f[channel::kDepth], 15.6f);                // a little longer off the mirror direction
+        for (int c = 0; c < 3; ++c)                          // Cycles multiplies the chain's tint in
             EXPECT_NEAR(f[channel::kAlbedo + c], kMetal[c] * kBackdrop[c], 1e-6f);
     });
 }

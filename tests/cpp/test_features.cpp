@@ -42,10 +42,9 @@ TEST(Features, GroupsTileAllChannelsWithoutGaps) {
 }
 
 TEST(Features, ChannelIndexConstantsStartTheirGroups) {
-    const int expected[] = {channel::kDiffuse,  channel::kSpecular,     channel::kNormal,
-                            channel::kDepth,    channel::kAlbedo,       channel::kRoughness,
-                            channel::kEmissive, channel::kMetallic,     channel::kTransmissive,
-                            channel::kSpecularBounce};
+    const int expected[] = {channel::kDiffuse,      channel::kSpecular,      channel::kNormal,   channel::kDepth,
+                            channel::kAlbedo,       channel::kRoughness,     channel::kEmissive, channel::kMetallic,
+                            channel::kTransmissive, channel::kSpecularBounce};
     ASSERT_EQ(std::size(expected), kFeatureGroups.size());
     for (std::size_t g = 0; g < kFeatureGroups.size(); ++g) {
         EXPECT_EQ(kFeatureGroups[g].offset, expected[g]) << kFeatureGroups[g].name;

@@ -40,8 +40,8 @@ class FrameIo : public ::testing::Test {
 protected:
     void SetUp() override {
         const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = fs::temp_directory_path() /
-               ("affinity_test_frame_io_" + std::to_string(::getpid()) + "_" + test->name());
+        dir_ =
+            fs::temp_directory_path() / ("affinity_test_frame_io_" + std::to_string(::getpid()) + "_" + test->name());
         fs::remove_all(dir_);
         fs::create_directories(dir_);
     }
@@ -107,9 +107,8 @@ SampleFrame randomFrame(int width, int height, int spp, bool withReference, unsi
     }
     for (std::size_t i = 0; i < a.size(); ++i) {
         if (bitsOf(a[i]) != bitsOf(b[i])) {
-            return ::testing::AssertionFailure()
-                   << "index " << i << ": " << a[i] << " (0x" << std::hex << bitsOf(a[i])
-                   << ") vs " << b[i] << " (0x" << bitsOf(b[i]) << ")";
+            return ::testing::AssertionFailure() << "index " << i << ": " << a[i] << " (0x" << std::hex << bitsOf(a[i])
+                                                 << ") vs " << b[i] << " (0x" << bitsOf(b[i]) << ")";
         }
     }
     return ::testing::AssertionSuccess();
@@ -129,24 +128,24 @@ void expectSameFrame(const SampleFrame& expected, const SampleFrame& actual) {
     EXPECT_EQ(actual.info.referenceSpp, expected.info.referenceSpp);
     EXPECT_EQ(actual.info.seed, expected.info.seed);
     for (std::size_t i = 0; i < 16; ++i) {
-        EXPECT_EQ(bitsOf(actual.info.worldToCamera[i]), bitsOf(expected.info.worldToCamera[i]))
-            << i;
-        EXPECT_EQ(bitsOf(actual.info.cameraToClip[i]), bitsOf(expected.info.cameraToClip[i]))
-            << i;
+        EXPECT_EQ(bitsOf(actual.info.worldToCamera[i]), bitsOf(expected.info.worldToCamera[i])) << i;
+        EXPECT_EQ(bitsOf(actual.info.cameraToClip[i]), bitsOf(expected.info.cameraToClip[i])) << i;
     }
 }
 
 const char* compressionName(ExrCompression compression) {
     switch (compression) {
-        case ExrCompression::None: return "none";
-        case ExrCompression::Zip: return "zip";
-        case ExrCompression::Piz: return "piz";
+    case ExrCompression::None:
+        return "none";
+    case ExrCompression::Zip:
+        return "zip";
+    case ExrCompression::Piz:
+        return "piz";
     }
     return "?";
 }
 
-constexpr ExrCompression kCompressions[] = {ExrCompression::None, ExrCompression::Zip,
-                                            ExrCompression::Piz};
+constexpr ExrCompression kCompressions[] = {ExrCompression::None, ExrCompression::Zip, ExrCompression::Piz};
 
 // Runs `read` and checks it throws an Error whose message names `file` and contains `problem`.
 void expectReadError(const std::string& file, const std::string& problem = "") {
@@ -156,8 +155,7 @@ void expectReadError(const std::string& file, const std::string& problem = "") {
     } catch (const Error& e) {
         const std::string message = e.what();
         EXPECT_NE(message.find(file), std::string::npos) << message;
-        EXPECT_NE(message.find(problem), std::string::npos)
-            << "'" << problem << "' not in: " << message;
+        EXPECT_NE(message.find(problem), std::string::npos) << "'" << problem << "' not in: " << message;
     } catch (const std::exception& e) {
         ADD_FAILURE() << "reading " << file << " threw a non-affinity exception: " << e.what();
     }
@@ -179,8 +177,7 @@ TEST_F(FrameIo, RoundTripIsExactForEveryCompression) {
     for (ExrCompression compression : kCompressions) {
         SCOPED_TRACE(compressionName(compression));
         const SampleFrame frame = randomFrame(13, 7, 5, true, 11);
-        const std::string file =
-            path(std::string("frame_") + compressionName(compression) + ".exr");
+        const std::string file = path(std::string("frame_") + compressionName(compression) + ".exr");
         writeFrame(file, frame, compression);
         expectSameFrame(frame, readFrame(file));
     }
@@ -210,8 +207,9 @@ TEST_F(FrameIo, ReadingIntoBandsGivesTheSameSamples) {
         EXPECT_TRUE(sameBits(back.motion(), frame.motion()));
         EXPECT_TRUE(sameBits(back.valid(), frame.valid()));
         EXPECT_TRUE(sameBits(back.reference(), frame.reference()));
-        EXPECT_TRUE(sameBits(meanRadiance({{0, 3, first.data()}, {3, 3, second.data()}, {6, 1, third.data()}}, 13, 7, 5),
-                             frame.meanRadiance()));
+        EXPECT_TRUE(
+            sameBits(meanRadiance({{0, 3, first.data()}, {3, 3, second.data()}, {6, 1, third.data()}}, 13, 7, 5),
+                     frame.meanRadiance()));
     }
 }
 
@@ -220,10 +218,10 @@ TEST_F(FrameIo, BandsThatDoNotCoverTheRowsAreAnError) {
     writeFrame(file, randomFrame(6, 5, 2, false, 13), ExrCompression::Zip);
     std::vector<float> buffer(std::size_t(6) * 5 * 2 * kFeatureCount);
     const std::vector<std::vector<SampleBand>> wrong = {
-        {{0, 4, buffer.data()}},                           // a row short
-        {{0, 2, buffer.data()}, {3, 2, buffer.data()}},    // a gap
-        {{0, 5, nullptr}},                                 // no memory
-        {{0, 3, buffer.data()}, {3, 3, buffer.data()}}};   // past the end
+        {{0, 4, buffer.data()}},                          // a row short
+        {{0, 2, buffer.data()}, {3, 2, buffer.data()}},   // a gap
+        {{0, 5, nullptr}},                                // no memory
+        {{0, 3, buffer.data()}, {3, 3, buffer.data()}}};  // past the end
     for (const auto& bands : wrong) {
         try {
             (void)readFrame(file, [&](int, int, int) { return bands; });
@@ -258,8 +256,8 @@ TEST_F(FrameIo, RoundTripExtremeSizes) {
 }
 
 TEST_F(FrameIo, SeedExtremesRoundTrip) {
-    for (std::uint64_t seed : {std::uint64_t(0), std::uint64_t(1) << 53 | 1,
-                               std::numeric_limits<std::uint64_t>::max()}) {
+    for (std::uint64_t seed :
+         {std::uint64_t(0), std::uint64_t(1) << 53 | 1, std::numeric_limits<std::uint64_t>::max()}) {
         SampleFrame frame = randomFrame(2, 2, 1, false, 3);
         frame.info.seed = seed;
         writeFrame(path("seed.exr"), frame);
@@ -275,15 +273,13 @@ TEST_F(FrameIo, MatrixIsStoredInImathLayout) {
     frame.info.cameraToClip = {1, 0, 0, 4, 0, 1, 0, 8, 0, 0, 1, 12, 0, 0, 0, 1};
     writeFrame(path("m.exr"), frame);
     Imf::InputFile file(path("m.exr").c_str());
-    const Imath::M44f stored =
-        file.header().typedAttribute<Imf::M44fAttribute>("affinity.worldToCamera").value();
+    const Imath::M44f stored = file.header().typedAttribute<Imf::M44fAttribute>("affinity.worldToCamera").value();
     for (int r = 0; r < 4; ++r) {
         for (int c = 0; c < 4; ++c) {
             EXPECT_EQ(stored[c][r], frame.info.worldToCamera[std::size_t(r * 4 + c)]) << r << c;
         }
     }
-    const Imath::M44f translation =
-        file.header().typedAttribute<Imf::M44fAttribute>("affinity.cameraToClip").value();
+    const Imath::M44f translation = file.header().typedAttribute<Imf::M44fAttribute>("affinity.cameraToClip").value();
     EXPECT_EQ(Imath::V3f(0, 0, 0) * translation, Imath::V3f(4, 8, 12));
 }
 
@@ -291,9 +287,8 @@ TEST_F(FrameIo, ChannelNamesFollowTheDocumentedScheme) {
     writeFrame(path("names.exr"), randomFrame(2, 2, 12, true, 6));
     Imf::InputFile file(path("names.exr").c_str());
     const Imf::ChannelList& channels = file.header().channels();
-    for (const char* name : {"sample00.diffuse.R", "sample11.specular_bounce.Y",
-                             "sample03.normal.Z", "motion.X", "motion.Y", "valid.Y", "reference.R",
-                             "reference.B"}) {
+    for (const char* name : {"sample00.diffuse.R", "sample11.specular_bounce.Y", "sample03.normal.Z", "motion.X",
+                             "motion.Y", "valid.Y", "reference.R", "reference.B"}) {
         const Imf::Channel* channel = channels.findChannel(name);
         ASSERT_NE(channel, nullptr) << name;
         EXPECT_EQ(channel->type, Imf::FLOAT) << name;
@@ -322,9 +317,7 @@ TEST_F(FrameIo, WriteRejectsInconsistentFrames) {
 
 // --- broken files ---------------------------------------------------------------------------
 
-TEST_F(FrameIo, MissingFile) {
-    expectReadError(path("nothing_here.exr"), "does not exist");
-}
+TEST_F(FrameIo, MissingFile) { expectReadError(path("nothing_here.exr"), "does not exist"); }
 
 TEST_F(FrameIo, FolderInsteadOfFile) {
     fs::create_directory(path("folder.exr"));
@@ -430,8 +423,7 @@ void writeCustomExr(const std::string& file, int spp, const std::function<void(I
     for (auto it = header.channels().begin(); it != header.channels().end(); ++it) {
         // Every channel reads the same zeros; the element size follows the channel's type.
         const std::size_t size = it.channel().type == Imf::HALF ? 2 : 4;
-        const std::ptrdiff_t origin =
-            std::ptrdiff_t(window.min.x) + std::ptrdiff_t(window.min.y) * w;
+        const std::ptrdiff_t origin = std::ptrdiff_t(window.min.x) + std::ptrdiff_t(window.min.y) * w;
         char* base = reinterpret_cast<char*>(zeros.data()) - origin * std::ptrdiff_t(size);
         buffer.insert(it.name(), Imf::Slice(it.channel().type, base, size, size * std::size_t(w)));
     }
@@ -456,8 +448,7 @@ void removeChannel(Imf::Header& header, const char* name) {
 }
 
 TEST_F(FrameIo, MissingChannelIsNamed) {
-    writeCustomExr(path("missing.exr"), 2,
-                   [](Imf::Header& h) { removeChannel(h, "sample01.normal.Z"); });
+    writeCustomExr(path("missing.exr"), 2, [](Imf::Header& h) { removeChannel(h, "sample01.normal.Z"); });
     expectReadError(path("missing.exr"), "missing channel 'sample01.normal.Z'");
     writeCustomExr(path("nomotion.exr"), 1, [](Imf::Header& h) { removeChannel(h, "motion.Y"); });
     expectReadError(path("nomotion.exr"), "missing channel 'motion.Y'");
@@ -473,34 +464,31 @@ TEST_F(FrameIo, PartialReferenceIsRejected) {
 
 TEST_F(FrameIo, UnexpectedChannelIsRejected) {
     // A channel of a sample beyond affinity.spp means the writer and the header disagree.
-    writeCustomExr(path("extra.exr"), 1, [](Imf::Header& h) {
-        h.channels().insert("sample01.diffuse.R", Imf::Channel(Imf::FLOAT));
-    });
+    writeCustomExr(path("extra.exr"), 1,
+                   [](Imf::Header& h) { h.channels().insert("sample01.diffuse.R", Imf::Channel(Imf::FLOAT)); });
     expectReadError(path("extra.exr"), "unexpected channel 'sample01.diffuse.R'");
 }
 
 TEST_F(FrameIo, NonFloatChannelIsRejected) {
-    writeCustomExr(path("half.exr"), 1, [](Imf::Header& h) {
-        h.channels().insert("valid.Y", Imf::Channel(Imf::HALF));
-    });
+    writeCustomExr(path("half.exr"), 1,
+                   [](Imf::Header& h) { h.channels().insert("valid.Y", Imf::Channel(Imf::HALF)); });
     expectReadError(path("half.exr"), "channel 'valid.Y' has type HALF, expected FLOAT");
 }
 
 TEST_F(FrameIo, MissingAttributeIsNamed) {
-    for (const char* name : {"affinity.version", "affinity.spp", "affinity.sceneName",
-                             "affinity.frameIndex", "affinity.referenceSpp", "affinity.seed",
-                             "affinity.worldToCamera", "affinity.cameraToClip",
-                             "affinity.checksum"}) {
+    for (const char* name :
+         {"affinity.version", "affinity.spp", "affinity.sceneName", "affinity.frameIndex", "affinity.referenceSpp",
+          "affinity.seed", "affinity.worldToCamera", "affinity.cameraToClip", "affinity.checksum"}) {
         SCOPED_TRACE(name);
-        writeCustomExr(path("noattr.exr"), 1, [](Imf::Header&) {}, name);
+        writeCustomExr(
+            path("noattr.exr"), 1, [](Imf::Header&) {}, name);
         expectReadError(path("noattr.exr"), std::string("missing attribute '") + name + "'");
     }
 }
 
 TEST_F(FrameIo, WrongAttributeTypeIsNamed) {
     writeCustomExr(
-        path("type.exr"), 1,
-        [](Imf::Header& h) { h.insert("affinity.spp", Imf::StringAttribute("1")); },
+        path("type.exr"), 1, [](Imf::Header& h) { h.insert("affinity.spp", Imf::StringAttribute("1")); },
         "affinity.spp");
     expectReadError(path("type.exr"), "attribute 'affinity.spp' has type 'string', expected 'int'");
 }
@@ -508,34 +496,28 @@ TEST_F(FrameIo, WrongAttributeTypeIsNamed) {
 TEST_F(FrameIo, BadSeedIsRejected) {
     for (const char* seed : {"", "-1", "18446744073709551616", "12x", " 5"}) {
         SCOPED_TRACE(seed);
-        writeCustomExr(path("seed.exr"), 1, [&](Imf::Header& h) {
-            h.insert("affinity.seed", Imf::StringAttribute(seed));
-        });
+        writeCustomExr(path("seed.exr"), 1,
+                       [&](Imf::Header& h) { h.insert("affinity.seed", Imf::StringAttribute(seed)); });
         expectReadError(path("seed.exr"), "affinity.seed");
     }
 }
 
 TEST_F(FrameIo, UnsupportedVersion) {
-    writeCustomExr(path("v2.exr"), 1, [](Imf::Header& h) {
-        h.insert("affinity.version", Imf::IntAttribute(2));
-    });
+    writeCustomExr(path("v2.exr"), 1, [](Imf::Header& h) { h.insert("affinity.version", Imf::IntAttribute(2)); });
     expectReadError(path("v2.exr"), "unsupported frame file version 2");
 }
 
 TEST_F(FrameIo, SppOutOfRange) {
     for (int spp : {0, -3, SampleFrame::kMaxSpp + 1}) {
         SCOPED_TRACE(spp);
-        writeCustomExr(path("spp.exr"), 1, [&](Imf::Header& h) {
-            h.insert("affinity.spp", Imf::IntAttribute(spp));
-        });
+        writeCustomExr(path("spp.exr"), 1, [&](Imf::Header& h) { h.insert("affinity.spp", Imf::IntAttribute(spp)); });
         expectReadError(path("spp.exr"), "affinity.spp");
     }
 }
 
 TEST_F(FrameIo, DataWindowMustStartAtOrigin) {
-    writeCustomExr(path("window.exr"), 1, [](Imf::Header& h) {
-        h.dataWindow() = Imath::Box2i(Imath::V2i(1, 2), Imath::V2i(4, 4));
-    });
+    writeCustomExr(path("window.exr"), 1,
+                   [](Imf::Header& h) { h.dataWindow() = Imath::Box2i(Imath::V2i(1, 2), Imath::V2i(4, 4)); });
     expectReadError(path("window.exr"), "data window starts at (1, 2)");
 }
 
@@ -623,24 +605,19 @@ TEST(FrameFileName, IsZeroPadded) {
 }
 
 TEST_F(FrameIo, ListFrameFilesInFrameOrder) {
-    for (const char* name : {"frame_0010.exr", "frame_0002.exr", "frame_12345.exr",
-                             "frame_0001.exr", "frame_9999.exr",
+    for (const char* name : {"frame_0010.exr", "frame_0002.exr", "frame_12345.exr", "frame_0001.exr", "frame_9999.exr",
                              // not frame files:
-                             "frame_0003.exr.tmp-12-0", "frame_3.exr", "frame_00004.exr",
-                             "frame_-001.exr", "frame_0006.EXR", "frame_.exr", "notes.txt",
-                             "reference_0001.exr"}) {
+                             "frame_0003.exr.tmp-12-0", "frame_3.exr", "frame_00004.exr", "frame_-001.exr",
+                             "frame_0006.EXR", "frame_.exr", "notes.txt", "reference_0001.exr"}) {
         writeBytes(path(name), "x", 1);
     }
     fs::create_directory(path("frame_0005.exr"));
-    const std::vector<std::string> expected = {path("frame_0001.exr"), path("frame_0002.exr"),
-                                               path("frame_0010.exr"), path("frame_9999.exr"),
-                                               path("frame_12345.exr")};
+    const std::vector<std::string> expected = {path("frame_0001.exr"), path("frame_0002.exr"), path("frame_0010.exr"),
+                                               path("frame_9999.exr"), path("frame_12345.exr")};
     EXPECT_EQ(listFrameFiles(dir_.string()), expected);
 }
 
-TEST_F(FrameIo, ListFrameFilesOfEmptyFolder) {
-    EXPECT_TRUE(listFrameFiles(dir_.string()).empty());
-}
+TEST_F(FrameIo, ListFrameFilesOfEmptyFolder) { EXPECT_TRUE(listFrameFiles(dir_.string()).empty()); }
 
 TEST_F(FrameIo, ListFrameFilesOfMissingFolderThrows) {
     const std::string missing = path("missing");

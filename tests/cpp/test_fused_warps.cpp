@@ -22,7 +22,8 @@ struct Warped {
 
 using WarpFunction = torch::Tensor (*)(const torch::Tensor&, const torch::Tensor&);
 
-Warped run(WarpFunction warp, const torch::Tensor& previous, const torch::Tensor& motion, const torch::Tensor& weights) {
+Warped run(WarpFunction warp, const torch::Tensor& previous, const torch::Tensor& motion,
+           const torch::Tensor& weights) {
     const torch::Tensor leaf = previous.detach().clone().set_requires_grad(true);
     const torch::Tensor out = warp(leaf, motion);
     (out * weights).sum().backward();

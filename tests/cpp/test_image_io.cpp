@@ -27,8 +27,8 @@ class ImageIo : public ::testing::Test {
 protected:
     void SetUp() override {
         const auto* test = ::testing::UnitTest::GetInstance()->current_test_info();
-        dir_ = fs::temp_directory_path() /
-               ("affinity_test_image_io_" + std::to_string(::getpid()) + "_" + test->name());
+        dir_ =
+            fs::temp_directory_path() / ("affinity_test_image_io_" + std::to_string(::getpid()) + "_" + test->name());
         fs::remove_all(dir_);
         fs::create_directories(dir_);
     }
@@ -85,8 +85,8 @@ TEST_F(ImageIo, ExrRoundTripIsExact) {
     Imf::FrameBuffer buffer;
     const char* names[3] = {"R", "G", "B"};
     for (int c = 0; c < 3; ++c) {
-        buffer.insert(names[c], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(back.data() + c),
-                                           3 * sizeof(float), 3 * sizeof(float) * width));
+        buffer.insert(names[c], Imf::Slice(Imf::FLOAT, reinterpret_cast<char*>(back.data() + c), 3 * sizeof(float),
+                                           3 * sizeof(float) * width));
     }
     file.setFrameBuffer(buffer);
     file.readPixels(0, height - 1);
@@ -98,21 +98,20 @@ TEST_F(ImageIo, PngToneMapping) {
     const float nan = std::numeric_limits<float>::quiet_NaN();
     // One pixel per row of this table: input RGB and expected 8-bit output.
     const std::vector<float> rgb = {
-        0.0f, 1.0f, 3e38f,   // black, x/(1+x) = 0.5 -> sRGB 188, overflow after exposure -> white
-        nan, inf, -inf,      // non-finite -> black
-        -1.0f, 0.001f, 9.0f, // negative -> black; tiny values use the linear sRGB segment
+        0.0f,  1.0f,   3e38f,  // black, x/(1+x) = 0.5 -> sRGB 188, overflow after exposure -> white
+        nan,   inf,    -inf,   // non-finite -> black
+        -1.0f, 0.001f, 9.0f,   // negative -> black; tiny values use the linear sRGB segment
     };
     writeTonemappedPng(path("image.png"), 1, 3, rgb.data(), 2.0f);
     const Png png = loadPng(path("image.png"));
     ASSERT_EQ(png.width, 1);
     ASSERT_EQ(png.height, 3);
     const auto srgb8 = [](float linear) {
-        const double v = linear <= 0.0031308 ? 12.92 * linear
-                                             : 1.055 * std::pow(double(linear), 1 / 2.4) - 0.055;
+        const double v = linear <= 0.0031308 ? 12.92 * linear : 1.055 * std::pow(double(linear), 1 / 2.4) - 0.055;
         return int(std::lround(v * 255));
     };
-    const std::vector<int> expected = {0,   srgb8(2.0f / 3.0f), 255, 0, 0, 0,
-                                       0,   srgb8(0.002f / 1.002f), srgb8(18.0f / 19.0f)};
+    const std::vector<int> expected = {
+        0, srgb8(2.0f / 3.0f), 255, 0, 0, 0, 0, srgb8(0.002f / 1.002f), srgb8(18.0f / 19.0f)};
     ASSERT_EQ(png.rgb.size(), expected.size());
     for (std::size_t i = 0; i < expected.size(); ++i) {
         EXPECT_NEAR(int(png.rgb[i]), expected[i], 1) << i;
@@ -133,11 +132,9 @@ TEST_F(ImageIo, BadArgumentsThrowAndWriteNothing) {
     expectErrorNaming(path("a.exr"), [&] { writeRgbExr(path("a.exr"), 0, 4, rgb.data()); });
     expectErrorNaming(path("a.exr"), [&] { writeRgbExr(path("a.exr"), 2, 2, nullptr); });
     expectErrorNaming(path("a.png"), [&] { writeTonemappedPng(path("a.png"), 2, -1, rgb.data()); });
-    expectErrorNaming(path("a.png"),
-                      [&] { writeTonemappedPng(path("a.png"), 2, 2, rgb.data(), -1.0f); });
+    expectErrorNaming(path("a.png"), [&] { writeTonemappedPng(path("a.png"), 2, 2, rgb.data(), -1.0f); });
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    expectErrorNaming(path("a.png"),
-                      [&] { writeTonemappedPng(path("a.png"), 2, 2, rgb.data(), nan); });
+    expectErrorNaming(path("a.png"), [&] { writeTonemappedPng(path("a.png"), 2, 2, rgb.data(), nan); });
     EXPECT_EQ(fileCount(), 0u);
 }
 

@@ -40,9 +40,9 @@ TEST(Integrator, ClosedFurnaceGivesEmissionOverOneMinusAlbedo) {
         Scene scene = test::emptyScene("furnace");
         int wall = test::addMaterial(scene, MaterialType::Emitter, glm::vec3(albedo), 0.5f, 1.5f, glm::vec3(1.0f));
         // Six quads facing inwards (a quad faces +Y before rotation).
-        const std::pair<glm::vec3, glm::vec3> faces[] = {
-            {{0, -10, 0}, {0, 0, 0}},  {{0, 10, 0}, {180, 0, 0}}, {{0, 0, -10}, {90, 0, 0}},
-            {{0, 0, 10}, {-90, 0, 0}}, {{-10, 0, 0}, {0, 0, -90}}, {{10, 0, 0}, {0, 0, 90}}};
+        const std::pair<glm::vec3, glm::vec3> faces[] = {{{0, -10, 0}, {0, 0, 0}},   {{0, 10, 0}, {180, 0, 0}},
+                                                         {{0, 0, -10}, {90, 0, 0}},  {{0, 0, 10}, {-90, 0, 0}},
+                                                         {{-10, 0, 0}, {0, 0, -90}}, {{10, 0, 0}, {0, 0, 90}}};
         for (const auto& [position, rotation] : faces)
             test::addObject(scene, ShapeType::Quad, wall, {position, rotation, glm::vec3(10.0f)});
         glm::dvec3 mean = meanRadiance(renderOne(scene, 16, 64));
@@ -94,7 +94,8 @@ TEST(Integrator, ErrorShrinksAsOneOverSquareRootOfSamples) {
                 for (int c = 0; c < 3; ++c) {
                     double mean = 0.0;
                     for (int s = 0; s < n; ++s)
-                        mean += frame.sample(x, y, s)[channel::kDiffuse + c] + frame.sample(x, y, s)[channel::kSpecular + c];
+                        mean += frame.sample(x, y, s)[channel::kDiffuse + c] +
+                                frame.sample(x, y, s)[channel::kSpecular + c];
                     double d = mean / n - frame.reference(x, y)[c];
                     sum += d * d;
                 }

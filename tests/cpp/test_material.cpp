@@ -26,8 +26,7 @@ constexpr double kPi = std::numbers::pi;
 glm::vec3 directionFromAngles(double thetaDeg, double phiDeg) {
     const double t = thetaDeg * kPi / 180.0;
     const double p = phiDeg * kPi / 180.0;
-    return glm::vec3(glm::dvec3(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p),
-                                std::cos(t)));
+    return glm::vec3(glm::dvec3(std::sin(t) * std::cos(p), std::sin(t) * std::sin(p), std::cos(t)));
 }
 
 glm::vec3 uniformSphere(Pcg32& rng) {
@@ -66,8 +65,8 @@ void basisAround(const glm::dvec3& axis, glm::dvec3& t, glm::dvec3& b) {
 // sharp lobe lives. Near grazing a sharp reflection lobe is a thin sliver (a facet tilt across
 // the plane of incidence moves wi by only ~2 cos(theta_o) times the tilt), hence nPhi.
 template <std::size_t K, class F>
-std::array<double, K> integrateSphere(const glm::vec3& axisF, F&& f, int nTheta = 1000,
-                                      int nPhi = 256, double thetaMax = kPi) {
+std::array<double, K> integrateSphere(const glm::vec3& axisF, F&& f, int nTheta = 1000, int nPhi = 256,
+                                      double thetaMax = kPi) {
     glm::dvec3 axis = glm::normalize(glm::dvec3(axisF));
     glm::dvec3 t, b;
     basisAround(axis, t, b);
@@ -75,12 +74,10 @@ std::array<double, K> integrateSphere(const glm::vec3& axisF, F&& f, int nTheta 
     for (int i = 0; i < nTheta; ++i) {
         const double s = (i + 0.5) / nTheta;
         const double theta = thetaMax * s * s * s * s;
-        const double weight =
-            std::sin(theta) * 4.0 * thetaMax * s * s * s / nTheta * (2.0 * kPi / nPhi);
+        const double weight = std::sin(theta) * 4.0 * thetaMax * s * s * s / nTheta * (2.0 * kPi / nPhi);
         for (int j = 0; j < nPhi; ++j) {
             const double phi = (j + 0.5) * 2.0 * kPi / nPhi;
-            const glm::dvec3 d = std::cos(theta) * axis +
-                                 std::sin(theta) * (std::cos(phi) * t + std::sin(phi) * b);
+            const glm::dvec3 d = std::cos(theta) * axis + std::sin(theta) * (std::cos(phi) * t + std::sin(phi) * b);
             const std::array<double, K> v = f(glm::vec3(d));
             for (std::size_t k = 0; k < K; ++k) sum[k] += weight * v[k];
         }
@@ -136,8 +133,7 @@ std::vector<Case> nonDeltaCases() {
     for (const Kind& k : kinds) {
         for (int side = 0; side < (k.twoSided ? 2 : 1); ++side) {
             for (float a : angles) {
-                const std::string name = std::string(k.name) + "_t" +
-                                         std::to_string(int(a)) + (side ? "_in" : "_out");
+                const std::string name = std::string(k.name) + "_t" + std::to_string(int(a)) + (side ? "_in" : "_out");
                 cases.push_back({name, k.type, k.roughness, k.color, a, side == 1});
             }
         }
@@ -154,10 +150,16 @@ float etaWiOverWo(const glm::vec3& wo, const glm::vec3& wi) {
 // Quantities compared between the two estimators.
 enum Quantity {
     kPdfOrAccept,  // integral of the pdf  vs  fraction of samples that are not absorbed
-    kDiffR, kDiffG, kDiffB,   // integral of f_diffuse |cos|  vs  mean weightDiffuse
-    kSpecR, kSpecG, kSpecB,   // integral of f_specular |cos|  vs  mean weightSpecular
-    kMomentX, kMomentY, kMomentZ,  // green albedo weighted by wi.x, wi.y, wi.z
-    kEnergy,  // green albedo with the 1/eta^2 radiance scaling undone (must be <= 1)
+    kDiffR,
+    kDiffG,
+    kDiffB,  // integral of f_diffuse |cos|  vs  mean weightDiffuse
+    kSpecR,
+    kSpecG,
+    kSpecB,  // integral of f_specular |cos|  vs  mean weightSpecular
+    kMomentX,
+    kMomentY,
+    kMomentZ,  // green albedo weighted by wi.x, wi.y, wi.z
+    kEnergy,   // green albedo with the 1/eta^2 radiance scaling undone (must be <= 1)
     kQuantityCount
 };
 using Quantities = std::array<double, kQuantityCount>;
@@ -184,18 +186,13 @@ Quantities quadrature(const Bsdf& bsdf, const glm::vec3& wo, bool transmissive) 
     // Each hemisphere gets its own grid, centred on where its lobe peaks.
     const float side = wo.z >= 0.0f ? 1.0f : -1.0f;
     const glm::vec3 mirror(-wo.x, -wo.y, wo.z);
-    auto sameSide = [&](const glm::vec3& wi) {
-        return wi.z * side > 0.0f ? integrand(wi) : Quantities{};
-    };
+    auto sameSide = [&](const glm::vec3& wi) { return wi.z * side > 0.0f ? integrand(wi) : Quantities{}; };
     Quantities result = integrateSphere<kQuantityCount>(mirror, sameSide, 1000, nPhi);
     if (transmissive) {
         const float etap = side > 0.0f ? 1.5f : 1.0f / 1.5f;
-        const std::optional<glm::vec3> refracted =
-            refractThrough(wo, glm::vec3(0.0f, 0.0f, side), etap);
+        const std::optional<glm::vec3> refracted = refractThrough(wo, glm::vec3(0.0f, 0.0f, side), etap);
         const glm::vec3 axis = refracted ? *refracted : glm::vec3(0.0f, 0.0f, -side);
-        auto otherSide = [&](const glm::vec3& wi) {
-            return wi.z * side < 0.0f ? integrand(wi) : Quantities{};
-        };
+        auto otherSide = [&](const glm::vec3& wi) { return wi.z * side < 0.0f ? integrand(wi) : Quantities{}; };
         const Quantities t = integrateSphere<kQuantityCount>(axis, otherSide, 1000, nPhi);
         for (int k = 0; k < kQuantityCount; ++k) result[k] += t[k];
     }
@@ -273,9 +270,8 @@ TEST_P(NonDeltaBsdf, SampleAgreesWithEvaluate) {
             ok = ok && relClose(s->weightSpecular[ch], v.specular[ch] * cosI / s->pdf, relTol);
         }
         if (!ok && ++mismatches <= 3) {
-            ADD_FAILURE() << "wi=(" << s->wi.x << "," << s->wi.y << "," << s->wi.z
-                          << ") sample pdf " << s->pdf << " evaluate pdf " << v.pdf
-                          << " weight.g " << s->weightDiffuse.y + s->weightSpecular.y
+            ADD_FAILURE() << "wi=(" << s->wi.x << "," << s->wi.y << "," << s->wi.z << ") sample pdf " << s->pdf
+                          << " evaluate pdf " << v.pdf << " weight.g " << s->weightDiffuse.y + s->weightSpecular.y
                           << " f.g*cos/pdf " << (v.diffuse.y + v.specular.y) * cosI / s->pdf;
         }
     }
@@ -290,9 +286,8 @@ TEST_P(NonDeltaBsdf, SamplingMatchesQuadratureOfEvaluate) {
     const bool transmissive = c.type == MaterialType::Dielectric;
     const Quantities q = quadrature(bsdf, wo, transmissive);
     const Estimate mc = monteCarlo(bsdf, wo, 200000, std::hash<std::string>{}(c.name));
-    const char* names[kQuantityCount] = {"pdf/accept", "diffR", "diffG", "diffB", "specR",
-                                         "specG", "specB", "momentX", "momentY", "momentZ",
-                                         "energy"};
+    const char* names[kQuantityCount] = {"pdf/accept", "diffR",   "diffG",   "diffB",   "specR", "specG",
+                                         "specB",      "momentX", "momentY", "momentZ", "energy"};
     for (int k = 0; k < kQuantityCount; ++k) {
         // 5 sigma for the Monte Carlo side, 0.3% for the quadrature of sharp lobes.
         const double tol = 5.0 * mc.stdError[k] + 3e-3 * std::abs(q[k]) + 3e-4;
@@ -319,8 +314,8 @@ class BroadLobeBsdf : public ::testing::TestWithParam<Case> {};
 std::vector<Case> broadLobeCases() {
     std::vector<Case> cases;
     for (const Case& c : nonDeltaCases()) {
-        const bool sharp = c.roughness > 0.0f && c.roughness < 0.3f &&
-                           c.type != MaterialType::Diffuse && c.type != MaterialType::Emitter;
+        const bool sharp = c.roughness > 0.0f && c.roughness < 0.3f && c.type != MaterialType::Diffuse &&
+                           c.type != MaterialType::Emitter;
         if (!sharp) cases.push_back(c);
     }
     return cases;
@@ -348,14 +343,10 @@ TEST_P(BroadLobeBsdf, PdfIntegralByUniformSphereSampling) {
     }
 }
 
-std::string caseName(const ::testing::TestParamInfo<Case>& paramInfo) {
-    return paramInfo.param.name;
-}
+std::string caseName(const ::testing::TestParamInfo<Case>& paramInfo) { return paramInfo.param.name; }
 
-INSTANTIATE_TEST_SUITE_P(Materials, NonDeltaBsdf, ::testing::ValuesIn(nonDeltaCases()),
-                         caseName);
-INSTANTIATE_TEST_SUITE_P(Materials, BroadLobeBsdf, ::testing::ValuesIn(broadLobeCases()),
-                         caseName);
+INSTANTIATE_TEST_SUITE_P(Materials, NonDeltaBsdf, ::testing::ValuesIn(nonDeltaCases()), caseName);
+INSTANTIATE_TEST_SUITE_P(Materials, BroadLobeBsdf, ::testing::ValuesIn(broadLobeCases()), caseName);
 
 // ---- Energy bounds with white colours (the worst case) ----
 
@@ -365,12 +356,10 @@ TEST(BsdfEnergy, WhiteMaterialsNeverReflectMoreThanTheyReceive) {
         float roughness;
     };
     const std::vector<Config> configs = {
-        {MaterialType::Conductor, 0.0f},  {MaterialType::Conductor, 0.05f},
-        {MaterialType::Conductor, 0.3f},  {MaterialType::Conductor, 1.0f},
-        {MaterialType::Plastic, 0.0f},    {MaterialType::Plastic, 0.05f},
-        {MaterialType::Plastic, 0.3f},    {MaterialType::Plastic, 1.0f},
-        {MaterialType::Dielectric, 0.0f}, {MaterialType::Dielectric, 0.05f},
-        {MaterialType::Dielectric, 0.3f}, {MaterialType::Dielectric, 1.0f},
+        {MaterialType::Conductor, 0.0f},   {MaterialType::Conductor, 0.05f}, {MaterialType::Conductor, 0.3f},
+        {MaterialType::Conductor, 1.0f},   {MaterialType::Plastic, 0.0f},    {MaterialType::Plastic, 0.05f},
+        {MaterialType::Plastic, 0.3f},     {MaterialType::Plastic, 1.0f},    {MaterialType::Dielectric, 0.0f},
+        {MaterialType::Dielectric, 0.05f}, {MaterialType::Dielectric, 0.3f}, {MaterialType::Dielectric, 1.0f},
         {MaterialType::Diffuse, 1.0f},
     };
     Pcg32 rng(5, 5);
@@ -394,9 +383,8 @@ TEST(BsdfEnergy, WhiteMaterialsNeverReflectMoreThanTheyReceive) {
                 }
                 const double mean = sum / n;
                 const double se = std::sqrt(std::max(0.0, sumSq / n - mean * mean) / n);
-                EXPECT_LE(mean, 1.0 + 4.0 * se + 1e-4)
-                    << "type " << int(cfg.type) << " roughness " << cfg.roughness << " theta "
-                    << theta << (inside ? " inside" : "");
+                EXPECT_LE(mean, 1.0 + 4.0 * se + 1e-4) << "type " << int(cfg.type) << " roughness " << cfg.roughness
+                                                       << " theta " << theta << (inside ? " inside" : "");
                 // White Lambertian furnace: everything comes back.
                 if (cfg.type == MaterialType::Diffuse) {
                     EXPECT_NEAR(mean, 1.0, 1e-5);
@@ -406,8 +394,7 @@ TEST(BsdfEnergy, WhiteMaterialsNeverReflectMoreThanTheyReceive) {
                     EXPECT_NEAR(mean, 1.0, 1e-5);
                 }
                 // Rough dielectric near normal incidence: little lost to multiple scattering.
-                if (cfg.type == MaterialType::Dielectric && cfg.roughness == 0.3f &&
-                    theta == 0.0f) {
+                if (cfg.type == MaterialType::Dielectric && cfg.roughness == 0.3f && theta == 0.0f) {
                     EXPECT_GT(mean, 0.97);
                 }
             }
@@ -420,8 +407,7 @@ TEST(BsdfEnergy, WhiteMaterialsNeverReflectMoreThanTheyReceive) {
 TEST(BsdfReciprocity, ReflectionIsSymmetric) {
     Pcg32 rng(77, 1);
     for (MaterialType type :
-         {MaterialType::Diffuse, MaterialType::Conductor, MaterialType::Plastic,
-          MaterialType::Emitter}) {
+         {MaterialType::Diffuse, MaterialType::Conductor, MaterialType::Plastic, MaterialType::Emitter}) {
         for (float roughness : {0.0f, 0.05f, 0.3f, 1.0f}) {
             const Bsdf bsdf(makeMaterial(type, roughness), glm::vec3(0.8f, 0.5f, 0.3f));
             for (int i = 0; i < 2000; ++i) {
@@ -785,16 +771,20 @@ TEST(Ggx, MaskingShadowingBounds) {
 
 TEST(BsdfRobustness, NoNanOrInfForDegenerateInput) {
     std::vector<glm::vec3> dirs = {
-        {0, 0, 1}, {0, 0, -1}, {1, 0, 0}, {0, 1, 0},
-        glm::normalize(glm::vec3(1.0f, 0.0f, 1e-7f)), glm::normalize(glm::vec3(1.0f, 1.0f, -1e-7f)),
-        glm::normalize(glm::vec3(0.0f, 1e-7f, 1.0f)), glm::normalize(glm::vec3(0.3f, -0.2f, 1e-30f)),
+        {0, 0, 1},
+        {0, 0, -1},
+        {1, 0, 0},
+        {0, 1, 0},
+        glm::normalize(glm::vec3(1.0f, 0.0f, 1e-7f)),
+        glm::normalize(glm::vec3(1.0f, 1.0f, -1e-7f)),
+        glm::normalize(glm::vec3(0.0f, 1e-7f, 1.0f)),
+        glm::normalize(glm::vec3(0.3f, -0.2f, 1e-30f)),
     };
     Pcg32 rng(1, 1);
     for (int i = 0; i < 24; ++i) dirs.push_back(uniformSphere(rng));
     const std::vector<float> us = {0.0f, 1e-7f, 0.5f, 0.99999994f};
-    for (MaterialType type : {MaterialType::Diffuse, MaterialType::Conductor,
-                              MaterialType::Dielectric, MaterialType::Plastic,
-                              MaterialType::Emitter}) {
+    for (MaterialType type : {MaterialType::Diffuse, MaterialType::Conductor, MaterialType::Dielectric,
+                              MaterialType::Plastic, MaterialType::Emitter}) {
         for (float roughness : {0.0f, 0.0199f, kDeltaRoughness, 0.021f, 0.05f, 0.5f, 1.0f}) {
             for (float ior : {1.5f, 1.0f, 1.0001f, 0.7f, 3.0f}) {
                 const Bsdf bsdf(makeMaterial(type, roughness, ior), glm::vec3(1.0f));
@@ -815,10 +805,8 @@ TEST(BsdfRobustness, NoNanOrInfForDegenerateInput) {
                                 ASSERT_TRUE(std::isfinite(s->pdf) && s->pdf >= 0.0f);
                                 ASSERT_NEAR(glm::length(s->wi), 1.0f, 1e-4f);
                                 for (int ch = 0; ch < 3; ++ch) {
-                                    ASSERT_TRUE(std::isfinite(s->weightDiffuse[ch]) &&
-                                                s->weightDiffuse[ch] >= 0.0f);
-                                    ASSERT_TRUE(std::isfinite(s->weightSpecular[ch]) &&
-                                                s->weightSpecular[ch] >= 0.0f);
+                                    ASSERT_TRUE(std::isfinite(s->weightDiffuse[ch]) && s->weightDiffuse[ch] >= 0.0f);
+                                    ASSERT_TRUE(std::isfinite(s->weightSpecular[ch]) && s->weightSpecular[ch] >= 0.0f);
                                 }
                                 if (type != MaterialType::Dielectric) {
                                     ASSERT_GT(wo.z, 0.0f);  // opaque: nothing from below

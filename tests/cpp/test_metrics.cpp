@@ -47,8 +47,8 @@ struct HalfPixelSequence {
     std::vector<float> valid{1.0f, 1.0f, 1.0f};
 
     double error() const {
-        return temporalError(output.data(), previousOutput.data(), reference.data(),
-                             previousReference.data(), motion.data(), valid.data(), 3, 1);
+        return temporalError(output.data(), previousOutput.data(), reference.data(), previousReference.data(),
+                             motion.data(), valid.data(), 3, 1);
     }
 };
 

@@ -16,7 +16,8 @@ namespace {
 // Pixel position of a world point for a camera key, from glm's own projection routine.
 glm::dvec2 expectedPixel(const CameraKey& key, const Camera& camera, glm::vec3 point, int width, int height) {
     glm::dmat4 view = glm::lookAt(glm::dvec3(key.position), glm::dvec3(key.target), glm::dvec3(camera.up));
-    glm::dmat4 projection = glm::perspective(glm::radians(double(camera.fovYDegrees)), double(width) / height, 0.01, 1000.0);
+    glm::dmat4 projection =
+        glm::perspective(glm::radians(double(camera.fovYDegrees)), double(width) / height, 0.01, 1000.0);
     glm::dvec3 window = glm::project(glm::dvec3(point), view, projection, glm::dvec4(0, 0, width, height));
     return {window.x, double(height) - window.y};  // glm's window y points up
 }
@@ -25,7 +26,8 @@ glm::dvec2 expectedPixel(const CameraKey& key, const Camera& camera, glm::vec3 p
 glm::dvec3 hitOnPlane(const CameraKey& key, const Camera& camera, double px, double py, int width, int height,
                       double planeZ) {
     glm::dmat4 view = glm::lookAt(glm::dvec3(key.position), glm::dvec3(key.target), glm::dvec3(camera.up));
-    glm::dmat4 projection = glm::perspective(glm::radians(double(camera.fovYDegrees)), double(width) / height, 0.01, 1000.0);
+    glm::dmat4 projection =
+        glm::perspective(glm::radians(double(camera.fovYDegrees)), double(width) / height, 0.01, 1000.0);
     glm::dvec4 viewport(0, 0, width, height);
     glm::dvec3 nearPoint = glm::unProject(glm::dvec3(px, height - py, 0.0), view, projection, viewport);
     glm::dvec3 farPoint = glm::unProject(glm::dvec3(px, height - py, 1.0), view, projection, viewport);
@@ -46,7 +48,8 @@ TEST(Motion, ReprojectsKnownPointsToWithinAHundredthOfAPixel) {
     wall.keys.push_back({0.0f, {glm::vec3(0, 0, -2), glm::vec3(90, 0, 0), glm::vec3(50)}});
     wall.keys.push_back({1.0f, {glm::vec3(0, 0, -2) + shift, glm::vec3(90, 0, 0), glm::vec3(50)}});
     scene.objects.push_back(wall);
-    scene.camera.keys = {{0.0f, {0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f}}, {1.0f, {0.4f, 0.2f, 4.5f}, {0.3f, -0.1f, 0.0f}}};
+    scene.camera.keys = {{0.0f, {0.0f, 0.0f, 5.0f}, {0.0f, 0.0f, 0.0f}},
+                         {1.0f, {0.4f, 0.2f, 4.5f}, {0.3f, -0.1f, 0.0f}}};
 
     RenderSettings settings;
     settings.width = 40;
@@ -61,12 +64,13 @@ TEST(Motion, ReprojectsKnownPointsToWithinAHundredthOfAPixel) {
     double worst = 0.0;
     for (int y = 0; y < settings.height; ++y) {
         for (int x = 0; x < settings.width; ++x) {
-            glm::dvec3 now = hitOnPlane(scene.camera.keys[1], scene.camera, x + 0.5, y + 0.5, settings.width,
-                                        settings.height, -2.0);
+            glm::dvec3 now =
+                hitOnPlane(scene.camera.keys[1], scene.camera, x + 0.5, y + 0.5, settings.width, settings.height, -2.0);
             glm::dvec2 before = expectedPixel(scene.camera.keys[0], scene.camera, glm::vec3(now) - shift,
                                               settings.width, settings.height);
             const float* motion = second.motion(x, y);
-            worst = std::max({worst, std::abs(x + 0.5 + motion[0] - before.x), std::abs(y + 0.5 + motion[1] - before.y)});
+            worst =
+                std::max({worst, std::abs(x + 0.5 + motion[0] - before.x), std::abs(y + 0.5 + motion[1] - before.y)});
             bool onScreen = before.x >= 0 && before.y >= 0 && before.x < settings.width && before.y < settings.height;
             EXPECT_EQ(second.valid(x, y), onScreen ? 1.0f : 0.0f) << x << "," << y;
         }
@@ -78,7 +82,8 @@ TEST(Motion, ReprojectsKnownPointsToWithinAHundredthOfAPixel) {
 TEST(Motion, EnvironmentFollowsCameraRotation) {
     Scene scene = test::emptyScene("sky");
     scene.environment.top = glm::vec3(1.0f);
-    scene.camera.keys = {{0.0f, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, -1.0f}}, {1.0f, {2.0f, 0.0f, 0.0f}, {2.1f, 0.0f, -1.0f}}};
+    scene.camera.keys = {{0.0f, {0.0f, 0.0f, 0.0f}, {0.0f, 0.0f, -1.0f}},
+                         {1.0f, {2.0f, 0.0f, 0.0f}, {2.1f, 0.0f, -1.0f}}};
     RenderSettings settings;
     settings.width = 32;
     settings.height = 32;
@@ -91,14 +96,15 @@ TEST(Motion, EnvironmentFollowsCameraRotation) {
     for (int y = 0; y < settings.height; ++y) {
         for (int x = 0; x < settings.width; ++x) {
             // A far point in the pixel's direction stands for the direction at infinity.
-            glm::dvec3 far = hitOnPlane(scene.camera.keys[1], scene.camera, x + 0.5, y + 0.5, settings.width,
-                                        settings.height, -1e4);
+            glm::dvec3 far =
+                hitOnPlane(scene.camera.keys[1], scene.camera, x + 0.5, y + 0.5, settings.width, settings.height, -1e4);
             glm::dvec3 direction = glm::normalize(far - glm::dvec3(scene.camera.keys[1].position));
             glm::dvec2 before = expectedPixel(scene.camera.keys[0], scene.camera,
                                               glm::vec3(glm::dvec3(scene.camera.keys[0].position) + 1e4 * direction),
                                               settings.width, settings.height);
             const float* motion = frame.motion(x, y);
-            worst = std::max({worst, std::abs(x + 0.5 + motion[0] - before.x), std::abs(y + 0.5 + motion[1] - before.y)});
+            worst =
+                std::max({worst, std::abs(x + 0.5 + motion[0] - before.x), std::abs(y + 0.5 + motion[1] - before.y)});
         }
     }
     EXPECT_LT(worst, 0.01);
@@ -146,7 +152,8 @@ TEST(Motion, DisoccludedPixelsAreInvalid) {
             for (int dy = -2; dy <= 2; ++dy)
                 for (int dx = -2; dx <= 2; ++dx) {
                     int qx = std::clamp(x + dx, 0, settings.width - 1), qy = std::clamp(y + dy, 0, settings.height - 1);
-                    nearPillar = nearPillar || pillarCoverage(previous, qx, qy) > 0 || pillarCoverage(current, qx, qy) > 0;
+                    nearPillar =
+                        nearPillar || pillarCoverage(previous, qx, qy) > 0 || pillarCoverage(current, qx, qy) > 0;
                 }
             if (!nearPillar) {
                 ++background;

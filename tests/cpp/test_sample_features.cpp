@@ -77,7 +77,7 @@ TEST(SampleFeatures, MirrorShowsTheReflectedSurface) {
                 EXPECT_EQ(f[channel::kMetallic], 0.0f);  // the backdrop is not metal
                 for (int c = 0; c < 3; ++c) EXPECT_NEAR(f[channel::kAlbedo + c], backdrop[c], 1e-5f);
                 EXPECT_NEAR(f[channel::kNormal + 2], -1.0f, 1e-3f);  // backdrop behind the camera faces -z
-                EXPECT_NEAR(f[channel::kDepth], 15.0f, 0.3f);          // 5 to the mirror + 10 back out
+                EXPECT_NEAR(f[channel::kDepth], 15.0f, 0.3f);        // 5 to the mirror + 10 back out
             }
     // A rough conductor is itself the first non-specular vertex.
     SampleFrame rough = renderFrame(frontalScene(MaterialType::Conductor, 0.4f, backdrop), 16, 16, 1);

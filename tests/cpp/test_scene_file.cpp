@@ -34,8 +34,8 @@ const char* kMinimal = R"({
 
 TEST(SceneFile, BundledScenesLoad) {
     const std::vector<std::string> names = bundledSceneNames();
-    for (const char* expected : {"disocclusion", "glossy", "refraction", "thin_geometry", "fireflies", "fine_texture",
-                                 "low_light"})
+    for (const char* expected :
+         {"disocclusion", "glossy", "refraction", "thin_geometry", "fireflies", "fine_texture", "low_light"})
         EXPECT_NE(std::find(names.begin(), names.end(), expected), names.end()) << expected;
     for (const std::string& name : names) {
         Scene scene = resolveScene(name);
@@ -62,9 +62,9 @@ TEST(SceneFile, ErrorsNameTheFileAndTheKey) {
               std::string::npos);
     EXPECT_NE(errorOf(replaced("\"shape\"", "\"shap\"")).find("objects[0]: unknown key \"shap\""), std::string::npos);
     EXPECT_NE(errorOf(replaced("\"sphere\"", "\"teapot\"")).find("unknown value 'teapot'"), std::string::npos);
-    EXPECT_NE(errorOf(replaced("\"diffuse\", \"color\": 0.5", "\"diffuse\", \"color\": [1, 2]"))
-                  .find("materials.grey.color"),
-              std::string::npos);
+    EXPECT_NE(
+        errorOf(replaced("\"diffuse\", \"color\": 0.5", "\"diffuse\", \"color\": [1, 2]")).find("materials.grey.color"),
+        std::string::npos);
     EXPECT_NE(errorOf("{ not json").find("test.json"), std::string::npos);
 }
 
@@ -171,9 +171,9 @@ TEST(SceneFile, ColoursAndEmissionOutsideTheirRangeAreRefused) {
     EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse", "texture": "t"}})", kCamera,
                                       R"(, "textures": {"t": {"type": "checker", "a": 0.5, "b": [1, 1, 3]}})"),
                             {"test.json", "textures.t.b", "[0, 1]"}));
-    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse"}})", kCamera,
-                                      R"(, "environment": {"top": 1, "bottom": -0.5})"),
-                            {"test.json", "environment.bottom", "negative"}));
+    EXPECT_TRUE(refusedWith(
+        sceneWith(R"({"grey": {"type": "diffuse"}})", kCamera, R"(, "environment": {"top": 1, "bottom": -0.5})"),
+        {"test.json", "environment.bottom", "negative"}));
     // The edges are allowed, and a bright lamp or sky is only radiance.
     EXPECT_EQ(errorOf(sceneWith(R"({"grey": {"type": "emitter", "color": [0, 1, 1], "emission": 500}})", kCamera,
                                 R"(, "environment": {"color": 20})")),
@@ -185,9 +185,9 @@ TEST(SceneFile, RangeErrorsNameTheFileAndTheMaterial) {
                             {"test.json", "materials.grey.roughness", "[0, 1]", "1.5"}));
     EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "dielectric", "ior": 0.5}})"),
                             {"test.json", "materials.grey.ior", "[1, 4]", "0.5"}));
-    EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse"}})",
-                                      R"({"fov": 180, "position": [0, 1, 5], "target": [0, 0, 0]})"),
-                            {"test.json", "camera.fov"}));
+    EXPECT_TRUE(refusedWith(
+        sceneWith(R"({"grey": {"type": "diffuse"}})", R"({"fov": 180, "position": [0, 1, 5], "target": [0, 0, 0]})"),
+        {"test.json", "camera.fov"}));
     EXPECT_TRUE(refusedWith(sceneWith(R"({"grey": {"type": "diffuse", "roughness": 1e60}})"),
                             {"test.json", "materials.grey.roughness", "finite"}));
 }

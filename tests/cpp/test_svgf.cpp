@@ -23,7 +23,7 @@ struct Surface {
     float depth = 5.0f;
     float noise = 1.0f;
     float motion[2] = {0.0f, 0.0f};
-    bool valid = true;  // history validity (frames after the first)
+    bool valid = true;      // history validity (frames after the first)
     float emission = 0.0f;  // > 0: an emitter (or the sky) of this radiance, flagged emissive
 };
 using Scene = std::function<Surface(int x, int y)>;
@@ -244,7 +244,8 @@ TEST(Svgf, EdgesSurviveFiltering) {
     const int width = 40, height = 24;
     const std::vector<std::pair<const char*, std::function<void(Surface&)>>> edges = {
         {"albedo", [](Surface& s) { s.albedo[0] = s.albedo[1] = s.albedo[2] = 0.1f; }},
-        {"normal", [](Surface& s) { s.normal[0] = 1.0f, s.normal[2] = 0.0f, s.light[0] = s.light[1] = s.light[2] = 0.2f; }},
+        {"normal",
+         [](Surface& s) { s.normal[0] = 1.0f, s.normal[2] = 0.0f, s.light[0] = s.light[1] = s.light[2] = 0.2f; }},
         {"depth", [](Surface& s) { s.depth = 10.0f, s.light[0] = s.light[1] = s.light[2] = 0.2f; }},
     };
     for (const auto& [name, change] : edges) {

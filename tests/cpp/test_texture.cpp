@@ -63,8 +63,7 @@ TEST(Texture, NoiseStaysWithinTheColourRangeAndIsDeterministic) {
     const glm::vec3 lo = glm::min(t.colorA, t.colorB), hi = glm::max(t.colorA, t.colorB);
     Pcg32 rng(3, 4);
     for (int k = 0; k < 50000; ++k) {
-        const glm::vec3 p(rng.next() * 200.0f - 100.0f, rng.next() * 200.0f - 100.0f,
-                          rng.next() * 200.0f - 100.0f);
+        const glm::vec3 p(rng.next() * 200.0f - 100.0f, rng.next() * 200.0f - 100.0f, rng.next() * 200.0f - 100.0f);
         const glm::vec3 c = t.evaluate({0.0f, 0.0f}, p);
         for (int ch = 0; ch < 3; ++ch) {
             ASSERT_GE(c[ch], lo[ch]);
@@ -83,9 +82,7 @@ TEST(Texture, NoiseStaysWithinTheColourRangeAndIsDeterministic) {
 TEST(Texture, NoiseIsContinuousAndNotConstant) {
     const Texture t = makeTexture(TextureType::Noise, 2.0f);
     // Map a colour back to the blend factor through the red channel (0.9 -> 0.2).
-    auto blend = [&](const glm::vec3& p) {
-        return (t.evaluate({}, p).x - t.colorA.x) / (t.colorB.x - t.colorA.x);
-    };
+    auto blend = [&](const glm::vec3& p) { return (t.evaluate({}, p).x - t.colorA.x) / (t.colorB.x - t.colorA.x); };
     Pcg32 rng(5, 6);
     double sum = 0.0, sumSq = 0.0, maxJump = 0.0;
     const int n = 20000;
@@ -95,8 +92,7 @@ TEST(Texture, NoiseIsContinuousAndNotConstant) {
         sum += v;
         sumSq += v * v;
         // Step 1e-4 object units (1.6e-3 lattice cells at the finest octave).
-        const glm::vec3 dir = glm::normalize(glm::vec3(rng.next() - 0.5f, rng.next() - 0.5f,
-                                                       rng.next() - 0.5f));
+        const glm::vec3 dir = glm::normalize(glm::vec3(rng.next() - 0.5f, rng.next() - 0.5f, rng.next() - 0.5f));
         maxJump = std::max(maxJump, std::abs(blend(p + 1e-4f * dir) - v));
     }
     const double mean = sum / n;

@@ -125,13 +125,26 @@ TEST(TorchModel, SmallPresetHasTheDocumentedTensorNames) {
     AffinityModel model = makeModel(presetConfig("small"), 1);
     std::vector<std::string> names;
     for (const auto& item : model->named_parameters()) names.push_back(item.key());
-    const std::vector<std::string> expected = {
-        "embed.0.weight", "embed.0.bias", "embed.1.weight", "embed.1.bias",
-        "unet.enc0.conv0.weight", "unet.enc0.conv0.bias", "unet.enc1.conv0.weight", "unet.enc1.conv0.bias",
-        "unet.enc2.conv0.weight", "unet.enc2.conv0.bias", "unet.bottleneck.conv0.weight",
-        "unet.bottleneck.conv0.bias", "unet.dec2.conv0.weight", "unet.dec2.conv0.bias", "unet.dec1.conv0.weight",
-        "unet.dec1.conv0.bias", "unet.dec0.conv0.weight", "unet.dec0.conv0.bias", "unet.head.weight",
-        "unet.head.bias"};
+    const std::vector<std::string> expected = {"embed.0.weight",
+                                               "embed.0.bias",
+                                               "embed.1.weight",
+                                               "embed.1.bias",
+                                               "unet.enc0.conv0.weight",
+                                               "unet.enc0.conv0.bias",
+                                               "unet.enc1.conv0.weight",
+                                               "unet.enc1.conv0.bias",
+                                               "unet.enc2.conv0.weight",
+                                               "unet.enc2.conv0.bias",
+                                               "unet.bottleneck.conv0.weight",
+                                               "unet.bottleneck.conv0.bias",
+                                               "unet.dec2.conv0.weight",
+                                               "unet.dec2.conv0.bias",
+                                               "unet.dec1.conv0.weight",
+                                               "unet.dec1.conv0.bias",
+                                               "unet.dec0.conv0.weight",
+                                               "unet.dec0.conv0.bias",
+                                               "unet.head.weight",
+                                               "unet.head.bias"};
     EXPECT_EQ(names, expected);
     // U-Net input 2E; decoder input = upsampled + skip; head P = K (F + 2) + 2 as a 1x1 conv.
     EXPECT_EQ(parameter(model, "embed.0.weight").sizes().vec(), (std::vector<std::int64_t>{32, 18}));
@@ -210,16 +223,16 @@ TEST(TorchModel, InconsistentWeightsAreRejected) {
     tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
     tensors.push_back({"unet.extra", DType::Float32, {1}, {0.0f}, {}});
     rejects(tensors, "unet.extra");
-    for (const char* option : {"config.source_weights", "config.emission_lambda", "config.albedo_demodulation",
-                               "config.emission_bypass"}) {
+    for (const char* option :
+         {"config.source_weights", "config.emission_lambda", "config.albedo_demodulation", "config.emission_bypass"}) {
         tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
         tensors.push_back({option, DType::Int32, {1}, {}, {2}});  // a switch is 0 or 1
         rejects(tensors, std::string(option) + " is 2, expected 0 or 1");
     }
     // A removed variant's switch turned on is refused by name, not read as a different model
     // (docs/TRAINING.md, "Tried and lost"); turned off it is the model itself.
-    for (const char* removed : {"config.source_weights", "config.emission_lambda", "config.albedo_demodulation",
-                                "config.emission_bypass"}) {
+    for (const char* removed :
+         {"config.source_weights", "config.emission_lambda", "config.albedo_demodulation", "config.emission_bypass"}) {
         tensors = modelTensors(makeModel(presetConfig("tiny"), 1));
         tensors.push_back({removed, DType::Int32, {1}, {}, {1}});
         rejects(tensors, std::string(removed) + " = 1: the option ");
@@ -273,9 +286,11 @@ TEST(TorchOps, WarpIsBilinearWithBorderClampAtPixelCentres) {
     const torch::Tensor clean = torch::nan_to_num(motion, 0.0);
     const torch::Tensor xs = (torch::arange(7, torch::kDouble).view({1, 1, 7}) + clean.select(1, 0)) * (2.0 / 6) - 1;
     const torch::Tensor ys = (torch::arange(5, torch::kDouble).view({1, 5, 1}) + clean.select(1, 1)) * (2.0 / 4) - 1;
-    const torch::Tensor sampled = torch::nn::functional::grid_sample(
-        previous, torch::stack({xs, ys}, 3),
-        torch::nn::functional::GridSampleFuncOptions().mode(torch::kBilinear).padding_mode(torch::kBorder).align_corners(true));
+    const torch::Tensor sampled = torch::nn::functional::grid_sample(previous, torch::stack({xs, ys}, 3),
+                                                                     torch::nn::functional::GridSampleFuncOptions()
+                                                                         .mode(torch::kBilinear)
+                                                                         .padding_mode(torch::kBorder)
+                                                                         .align_corners(true));
     EXPECT_LT(maxAbsDiff(sampled, warped), 1e-12);
 }
 
@@ -318,7 +333,8 @@ torch::Tensor directFilter(const torch::Tensor& L, const KernelParams& k, int ta
                     if (i != 0 || j != 0) {
                         double d2 = 0;
                         for (std::int64_t f = 0; f < F; ++f) {
-                            const double d = k.features[0][f][y][x].item<double>() - k.features[0][f][qy][qx].item<double>();
+                            const double d =
+                                k.features[0][f][y][x].item<double>() - k.features[0][f][qy][qx].item<double>();
                             d2 += d * d;
                         }
                         w = std::exp(-a * a * d2);
@@ -333,11 +349,12 @@ torch::Tensor directFilter(const torch::Tensor& L, const KernelParams& k, int ta
                         if (qy < 0 || qy >= H || qx < 0 || qx >= W) continue;
                         double d2 = 0;
                         for (std::int64_t f = 0; f < F; ++f) {
-                            const double d = k.features[0][f][y][x].item<double>() -
-                                             temporal->features[0][f][qy][qx].item<double>();
+                            const double d =
+                                k.features[0][f][y][x].item<double>() - temporal->features[0][f][qy][qx].item<double>();
                             d2 += d * d;
                         }
-                        add(temporal->valid[0][0][qy][qx].item<double>() * std::exp(-b * b * d2), temporal->output, qy, qx);
+                        add(temporal->valid[0][0][qy][qx].item<double>() * std::exp(-b * b * d2), temporal->output, qy,
+                            qx);
                     }
             }
             for (std::int64_t c = 0; c < C; ++c) out[0][c][y][x] = num[std::size_t(c)] / (1e-8 + den);
@@ -460,7 +477,8 @@ TEST(TorchModel, BatchElementsAreIndependentSequences) {
     const auto first = randomSequence(2, 2, 8, 10, torch::kFloat), second = randomSequence(2, 2, 8, 10, torch::kFloat);
     std::vector<FrameInput> batched;
     for (std::size_t t = 0; t < 2; ++t) {
-        batched.push_back({torch::cat({first[t].samples, second[t].samples}), torch::cat({first[t].motion, second[t].motion}),
+        batched.push_back({torch::cat({first[t].samples, second[t].samples}),
+                           torch::cat({first[t].motion, second[t].motion}),
                            torch::cat({first[t].valid, second[t].valid})});
     }
     torch::NoGradGuard noGrad;
@@ -587,7 +605,8 @@ TEST(TorchGradients, TemporalKernel) {
     expectGradientMatches(loss, in.kernel.bandwidth, someIndices(in.kernel.bandwidth.numel()), "temporal: a");
     expectGradientMatches(loss, in.temporal.bandwidth, someIndices(in.temporal.bandwidth.numel()), "temporal: b");
     expectGradientMatches(loss, in.temporal.output, someIndices(in.temporal.output.numel()), "temporal: warped output");
-    expectGradientMatches(loss, in.temporal.features, someIndices(in.temporal.features.numel()), "temporal: warped features");
+    expectGradientMatches(loss, in.temporal.features, someIndices(in.temporal.features.numel()),
+                          "temporal: warped features");
 }
 
 TEST(TorchGradients, WholePipelineOverTwoFrames) {

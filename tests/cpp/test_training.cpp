@@ -165,7 +165,8 @@ TEST(TrainingLoss, WarpedTemporalTermsIgnoreMotionAndCountOnlyPixelsWithHistory)
     valid.select(3, 5).select(2, 2).fill_(0.0);
     flickering.select(3, 5).select(2, 2) += 9.0;
     const std::vector<train::FrameMotion> withInvalid{{motion, valid}, {motion, valid}};
-    const train::LossTerms one = train::sequenceLoss({2 * r0, flickering}, references, {}, {0.25, 1.0, true}, withInvalid);
+    const train::LossTerms one =
+        train::sequenceLoss({2 * r0, flickering}, references, {}, {0.25, 1.0, true}, withInvalid);
     EXPECT_NEAR(one.temporal.item<double>(), 3 * (1.0 / 1.01) / (3 * 19.0), 1e-5);
 }
 
@@ -177,7 +178,8 @@ TEST(TrainingLossGradient, MatchesFiniteDifferences) {
     std::vector<std::vector<torch::Tensor>> bandwidths;
     std::vector<train::FrameMotion> motions;
     for (int t = 0; t < 3; ++t) {
-        motions.push_back({torch::rand({2, 2, 4, 3}, options) * 3 - 1.5, (torch::rand({2, 1, 4, 3}, options) > 0.2).to(torch::kDouble)});
+        motions.push_back({torch::rand({2, 2, 4, 3}, options) * 3 - 1.5,
+                           (torch::rand({2, 1, 4, 3}, options) > 0.2).to(torch::kDouble)});
         outputs.push_back((torch::rand({2, 3, 4, 3}, options) * 2 - 0.3).requires_grad_(true));
         references.push_back(torch::rand({2, 3, 4, 3}, options) * 2);
         bandwidths.push_back({(torch::randn({2, 1, 4, 3}, options) * 30).requires_grad_(true),
@@ -222,11 +224,11 @@ TEST(TrainingAugmentation, WarpCommutesWithEveryTransform) {
         train::Clip transformed = clip;
         train::applyAugmentation(transformed, augmentation);
         // The expected image: the original warp result, transformed as frame 1 of a clip.
-        train::Clip expected{clip.samples, clip.motion, clip.valid, torch::cat({clip.reference.narrow(0, 0, 1), warped})};
+        train::Clip expected{clip.samples, clip.motion, clip.valid,
+                             torch::cat({clip.reference.narrow(0, 0, 1), warped})};
         train::applyAugmentation(expected, augmentation);
-        const torch::Tensor actual =
-            train::warpBilinear(transformed.reference.narrow(0, 0, 1).contiguous(),
-                                transformed.motion.narrow(0, 1, 1).contiguous());
+        const torch::Tensor actual = train::warpBilinear(transformed.reference.narrow(0, 0, 1).contiguous(),
+                                                         transformed.motion.narrow(0, 1, 1).contiguous());
         EXPECT_LT((actual - expected.reference.narrow(0, 1, 1)).abs().max().item<double>(), 1e-5) << "bits " << bits;
         // Diffuse, specular and albedo follow the reference's colour permutation.
         for (int c = 0; c < 3; ++c) {
@@ -291,8 +293,8 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     const std::string renderer = std::string(AFFINITY_BINARY_DIR) + "/core/affinity";
     auto render = [&](const std::string& split, int seed, int referenceSpp) {
         const std::string command = renderer + " render --scene procedural:" + std::to_string(seed) +
-                                    " --frames 4 --spp 8 --size 48x48 --reference-spp " +
-                                    std::to_string(referenceSpp) + " --seed " + std::to_string(seed) + " --out " +
+                                    " --frames 4 --spp 8 --size 48x48 --reference-spp " + std::to_string(referenceSpp) +
+                                    " --seed " + std::to_string(seed) + " --out " +
                                     (root / split / ("seed_" + std::to_string(seed))).string() +
                                     " --compression none > /dev/null 2>&1";
         ASSERT_EQ(std::system(command.c_str()), 0) << command;
@@ -327,7 +329,8 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
 
     // Export -> core: Model::fromFile loads it; the core and the torch model agree per frame.
     std::vector<SampleFrame> frames;
-    for (const std::string& file : listFrameFiles((root / "val" / "seed_201").string())) frames.push_back(readFrame(file));
+    for (const std::string& file : listFrameFiles((root / "val" / "seed_201").string()))
+        frames.push_back(readFrame(file));
     const std::vector<std::vector<float>> expected = train::torchDenoiseSequence(summary.bestWeights, frames);
     Denoiser denoiser(Model::fromFile(summary.bestWeights, Precision::Float32));  // against libtorch
     double denoisedSmape = 0, noisySmape = 0;
@@ -336,7 +339,8 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
         ASSERT_EQ(actual.size(), expected[t].size());
         double worst = 0;
         for (std::size_t i = 0; i < actual.size(); ++i) {
-            worst = std::max(worst, std::abs(double(actual[i]) - expected[t][i]) / (std::abs(double(expected[t][i])) + 1e-3));
+            worst = std::max(worst,
+                             std::abs(double(actual[i]) - expected[t][i]) / (std::abs(double(expected[t][i])) + 1e-3));
         }
         EXPECT_LT(worst, 1e-4) << "frame " << t;
         const std::vector<float> noisy = frames[t].meanRadiance();

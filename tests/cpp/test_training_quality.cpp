@@ -66,7 +66,8 @@ double meanSmape(const std::vector<std::vector<float>>& outputs, const std::vect
 double sequenceRatio(const std::vector<SampleFrame>& frames) {
     std::vector<std::vector<float>> noisy;
     for (const SampleFrame& frame : frames) noisy.push_back(frame.meanRadiance());
-    const double denoised = meanSmape(denoiseAll(Model::builtIn(Precision::Float32), frames), frames), input = meanSmape(noisy, frames);
+    const double denoised = meanSmape(denoiseAll(Model::builtIn(Precision::Float32), frames), frames),
+                 input = meanSmape(noisy, frames);
     std::cout << "glossy: SMAPE noisy " << input << ", denoised " << denoised << ", ratio " << denoised / input << "\n";
     return denoised / input;
 }
@@ -95,7 +96,8 @@ TEST(DefaultModelQuality, BFloat16KeepsTheQuality) {
         EXPECT_NE(fp32[i], bf16[i]) << "frame " << i << ": the bfloat16 model computed in FP32";
         apart += smape(bf16[i].data(), fp32[i].data(), fp32[i].size()) / double(frames.size());
     }
-    std::cout << "glossy: SMAPE fp32 " << fp32Error << ", bf16 " << bf16Error << ", bf16 against fp32 " << apart << "\n";
+    std::cout << "glossy: SMAPE fp32 " << fp32Error << ", bf16 " << bf16Error << ", bf16 against fp32 " << apart
+              << "\n";
     EXPECT_LT(std::abs(bf16Error - fp32Error), 0.003 * fp32Error);
     EXPECT_LT(apart, 2e-3);
 }

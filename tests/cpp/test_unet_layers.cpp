@@ -41,7 +41,8 @@ struct ConvWeights {
 ConvWeights randomConv(int out, int in, int size, std::mt19937& rng) {
     // Scaled like a trained layer so activations stay O(1).
     const float scale = 1.0f / std::sqrt(float(in * size * size));
-    return {out, in, size, randomValues(std::size_t(out) * in * size * size, rng, scale), randomValues(std::size_t(out), rng)};
+    return {out, in, size, randomValues(std::size_t(out) * in * size * size, rng, scale),
+            randomValues(std::size_t(out), rng)};
 }
 
 // Reference: double accumulation over the zero-padded input; also returns the sum of
@@ -112,8 +113,7 @@ int countMismatches(const FeatureMap& output, const ConvWeights& w, const Featur
         // (a single missing or wrong term would be about 1/n of it).
         const double tolerance = 1e-5 * magnitude[i] + 1e-7;
         if (!(std::abs(output.data()[i] - expected[i]) <= tolerance)) {
-            if (bad < 3)
-                ADD_FAILURE() << "value " << i << ": got " << output.data()[i] << ", expected " << expected[i];
+            if (bad < 3) ADD_FAILURE() << "value " << i << ": got " << output.data()[i] << ", expected " << expected[i];
             ++bad;
         }
     }
@@ -209,8 +209,7 @@ TEST(Conv2d, UpsampledInputEqualsExplicitUpsampling) {
                     SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " split " +
                                  std::to_string(split[0]) + "+" + std::to_string(split[1]) + " out " +
                                  std::to_string(out) + " size " + std::to_string(kernel));
-                    const FeatureMap coarse =
-                        randomMap((size.height + 1) / 2, (size.width + 1) / 2, split[0], rng);
+                    const FeatureMap coarse = randomMap((size.height + 1) / 2, (size.width + 1) / 2, split[0], rng);
                     const FeatureMap skip = randomMap(size.height, size.width, split[1], rng);
                     const ConvWeights w = randomConv(out, split[0] + split[1], kernel, rng);
                     const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size);
@@ -277,8 +276,7 @@ TEST(Conv2d, FoldedUpsampledInputMatchesReference) {
         for (const auto& split : splits)
             for (const int out : {5, 24, 33}) {
                 SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " split " +
-                             std::to_string(split[0]) + "+" + std::to_string(split[1]) + " out " +
-                             std::to_string(out));
+                             std::to_string(split[0]) + "+" + std::to_string(split[1]) + " out " + std::to_string(out));
                 const FeatureMap coarse = randomMap((size.height + 1) / 2, (size.width + 1) / 2, split[0], rng);
                 const FeatureMap skip = randomMap(size.height, size.width, split[1], rng);
                 const ConvWeights w = randomConv(out, split[0] + split[1], 3, rng);
@@ -521,7 +519,8 @@ TEST(MaxPool2x2, CeilModeOnOddSizes) {
     const Size sizes[] = {{1, 1}, {1, 7}, {7, 1}, {7, 13}, {33, 17}, {2, 2}, {4, 6}, {3, 300}};
     for (const Size size : sizes)
         for (const int channels : {1, 3, 13, 32, 35}) {
-            SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + "x" + std::to_string(channels));
+            SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + "x" +
+                         std::to_string(channels));
             const FeatureMap input = randomMap(size.height, size.width, channels, rng);
             FeatureMap output;
             maxPool2x2(input, output);
@@ -559,7 +558,8 @@ TEST(UpsampleNearest, ToOddSizes) {
     const Size sizes[] = {{1, 1}, {1, 7}, {7, 1}, {7, 13}, {33, 17}, {2, 2}, {4, 6}, {301, 5}};
     for (const Size size : sizes)
         for (const int channels : {1, 3, 32, 35}) {
-            SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + "x" + std::to_string(channels));
+            SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + "x" +
+                         std::to_string(channels));
             const FeatureMap low = randomMap((size.height + 1) / 2, (size.width + 1) / 2, channels, rng);
             FeatureMap output;
             upsampleNearest(low, size.height, size.width, output);

@@ -465,21 +465,37 @@ TEST(WeightsAccess, WrongDtypeIsNamed) {
 
 TEST(WeightsWriter, RejectsInconsistentTensors) {
     std::mt19937 rng(1);
-    expectErrorMentioning([&] { train::serializeWeights({floatTensor("x", {2}, rng), floatTensor("x", {3}, rng)}); },
-                          {"duplicate", "'x'"});
-    expectErrorMentioning([] { train::serializeWeights({NamedTensor{"r0", DType::Float32, {}, {1.0f}, {}}}); },
-                          {"'r0'", "rank 0"});
     expectErrorMentioning(
-        [] { train::serializeWeights({NamedTensor{"r5", DType::Float32, {1, 1, 1, 1, 1}, {1.0f}, {}}}); },
+        [&] {
+            train::serializeWeights({floatTensor("x", {2}, rng), floatTensor("x", {3}, rng)});
+        },
+        {"duplicate", "'x'"});
+    expectErrorMentioning(
+        [] {
+            train::serializeWeights({NamedTensor{"r0", DType::Float32, {}, {1.0f}, {}}});
+        },
+        {"'r0'", "rank 0"});
+    expectErrorMentioning(
+        [] {
+            train::serializeWeights({NamedTensor{"r5", DType::Float32, {1, 1, 1, 1, 1}, {1.0f}, {}}});
+        },
         {"'r5'", "rank 5"});
-    expectErrorMentioning([] { train::serializeWeights({NamedTensor{"n", DType::Float32, {3}, {1.0f, 2.0f}, {}}}); },
-                          {"'n'", "shape needs 3"});
-    expectErrorMentioning([] { train::serializeWeights({NamedTensor{"i", DType::Int32, {1}, {1.0f}, {}}}); },
-                          {"'i'"});
-    expectErrorMentioning([] { train::serializeWeights({NamedTensor{"z", DType::Float32, {0}, {}, {}}}); },
-                          {"'z'", "dimension 0"});
-    expectErrorMentioning([] { train::serializeWeights({NamedTensor{"", DType::Int32, {1}, {}, {1}}}); },
-                          {"empty name"});
+    expectErrorMentioning(
+        [] {
+            train::serializeWeights({NamedTensor{"n", DType::Float32, {3}, {1.0f, 2.0f}, {}}});
+        },
+        {"'n'", "shape needs 3"});
+    expectErrorMentioning([] { train::serializeWeights({NamedTensor{"i", DType::Int32, {1}, {1.0f}, {}}}); }, {"'i'"});
+    expectErrorMentioning(
+        [] {
+            train::serializeWeights({NamedTensor{"z", DType::Float32, {0}, {}, {}}});
+        },
+        {"'z'", "dimension 0"});
+    expectErrorMentioning(
+        [] {
+            train::serializeWeights({NamedTensor{"", DType::Int32, {1}, {}, {1}}});
+        },
+        {"empty name"});
 }
 
 TEST(WeightsWriter, WriteFailureNamesThePath) {

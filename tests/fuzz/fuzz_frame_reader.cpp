@@ -44,8 +44,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         for (const float value : frame.motion()) sum += value;
         volatile float sink = sum;
         (void)sink;
-    } catch (const affinity::Error&) {
-    }
+    } catch (const affinity::Error&) {}
     // Again into two bands of rows (as `affinity denoise` reads into a denoiser's memory).
     try {
         std::vector<float> top, bottom;
@@ -64,7 +63,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         for (const float value : frame.valid()) sum += value;
         volatile float sink = sum;
         (void)sink;
-    } catch (const affinity::Error&) {
-    }
+    } catch (const affinity::Error&) {}
     return 0;
 }

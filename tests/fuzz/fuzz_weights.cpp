@@ -22,8 +22,7 @@ void parseAndTouch(const std::uint8_t* data, std::size_t size) {
         }
         volatile std::uint32_t sink = sum;
         (void)sink;
-    } catch (const affinity::Error&) {
-    }
+    } catch (const affinity::Error&) {}
 }
 
 }  // namespace

@@ -11,8 +11,7 @@ namespace affinity {
 // then renames it over `path`. If `write` or any later step throws, the temporary file is
 // removed and the exception propagates. Failures of the helper itself (sync, rename) throw
 // affinity::Error naming the files involved.
-void writeAtomically(const std::string& path,
-                     const std::function<void(const std::string& temporaryPath)>& write);
+void writeAtomically(const std::string& path, const std::function<void(const std::string& temporaryPath)>& write);
 
 // Removes every temporary file a writeAtomically() call is writing at this moment, for a
 // signal handler about to end the process: async-signal-safe (unlink only). Files with paths

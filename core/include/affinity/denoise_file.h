@@ -11,10 +11,10 @@
 namespace affinity {
 
 struct DenoisedFile {
-    SampleFrame frame;              // as readFrame() gives it, without samples
-    std::vector<float> noisy;       // the samples' mean radiance [y][x][3], where asked for
-    std::vector<float> denoised;    // [y][x][3], bit for bit denoiser.denoise(readFrame(path))
-    double denoiseMilliseconds = 0; // finishFrame() alone, the read excluded
+    SampleFrame frame;               // as readFrame() gives it, without samples
+    std::vector<float> noisy;        // the samples' mean radiance [y][x][3], where asked for
+    std::vector<float> denoised;     // [y][x][3], bit for bit denoiser.denoise(readFrame(path))
+    double denoiseMilliseconds = 0;  // finishFrame() alone, the read excluded
 };
 
 // When to make DenoisedFile::noisy (a pass over the samples): for metrics against the reference.

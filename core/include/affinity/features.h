@@ -10,25 +10,25 @@ namespace affinity {
 
 // A group of consecutive channels in a sample's 18 floats.
 struct FeatureGroup {
-    std::string_view name;         // used in EXR channel names: "<name>.<component>"
-    int offset;                    // first channel inside the sample
-    int count;                     // number of channels
-    std::string_view components;   // one letter per channel, e.g. "RGB", "XYZ"
-    float minValue, maxValue;      // documented range (inclusive); radiance/depth are open above
+    std::string_view name;        // used in EXR channel names: "<name>.<component>"
+    int offset;                   // first channel inside the sample
+    int count;                    // number of channels
+    std::string_view components;  // one letter per channel, e.g. "RGB", "XYZ"
+    float minValue, maxValue;     // documented range (inclusive); radiance/depth are open above
 };
 
 // Channel indices inside one sample.
 namespace channel {
-inline constexpr int kDiffuse = 0;        // 3: diffuse radiance, linear, >= 0
-inline constexpr int kSpecular = 3;       // 3: specular (= not diffuse) radiance, linear, >= 0
-inline constexpr int kNormal = 6;         // 3: world-space unit shading normal, 0 on a miss
-inline constexpr int kDepth = 9;          // 1: camera distance along the path, 0 on a miss
-inline constexpr int kAlbedo = 10;        // 3: reflectance in [0, 1]
-inline constexpr int kRoughness = 13;     // 1: linear roughness in [kRoughnessFloor, 1]
-inline constexpr int kEmissive = 14;      // 1: flag, first non-specular vertex emits
-inline constexpr int kMetallic = 15;      // 1: flag, conductor
-inline constexpr int kTransmissive = 16;  // 1: flag, path transmitted through a dielectric
-inline constexpr int kSpecularBounce = 17;// 1: flag, first camera vertex was a delta interaction
+inline constexpr int kDiffuse = 0;          // 3: diffuse radiance, linear, >= 0
+inline constexpr int kSpecular = 3;         // 3: specular (= not diffuse) radiance, linear, >= 0
+inline constexpr int kNormal = 6;           // 3: world-space unit shading normal, 0 on a miss
+inline constexpr int kDepth = 9;            // 1: camera distance along the path, 0 on a miss
+inline constexpr int kAlbedo = 10;          // 3: reflectance in [0, 1]
+inline constexpr int kRoughness = 13;       // 1: linear roughness in [kRoughnessFloor, 1]
+inline constexpr int kEmissive = 14;        // 1: flag, first non-specular vertex emits
+inline constexpr int kMetallic = 15;        // 1: flag, conductor
+inline constexpr int kTransmissive = 16;    // 1: flag, path transmitted through a dielectric
+inline constexpr int kSpecularBounce = 17;  // 1: flag, first camera vertex was a delta interaction
 }  // namespace channel
 
 inline constexpr int kFeatureCount = 18;

@@ -18,7 +18,7 @@ using Matrix4 = std::array<float, 16>;
 struct FrameInfo {
     std::string sceneName;
     int frameIndex = 0;
-    int referenceSpp = 0;   // samples per pixel of `reference`; 0 when there is none
+    int referenceSpp = 0;  // samples per pixel of `reference`; 0 when there is none
     std::uint64_t seed = 0;
     // World to camera space; the camera looks down -Z with +Y up (OpenGL and Blender convention).
     Matrix4 worldToCamera{};
@@ -109,9 +109,7 @@ public:
 
 private:
     SampleFrame(int width, int height, int spp, bool withReference, bool withSamples);
-    std::size_t sampleOffset(int x, int y, int s) const {
-        return (pixelIndex(x, y) * spp_ + s) * kFeatureCount;
-    }
+    std::size_t sampleOffset(int x, int y, int s) const { return (pixelIndex(x, y) * spp_ + s) * kFeatureCount; }
 
     int width_ = 0, height_ = 0, spp_ = 0;
     std::vector<float> samples_, motion_, valid_, reference_;

@@ -15,8 +15,7 @@ namespace affinity {
 enum class ExrCompression { None, Zip, Piz };
 
 // Writes to a temporary file beside `path`, then renames it over `path`.
-void writeFrame(const std::string& path, const SampleFrame& frame,
-                ExrCompression compression = ExrCompression::Piz);
+void writeFrame(const std::string& path, const SampleFrame& frame, ExrCompression compression = ExrCompression::Piz);
 SampleFrame readFrame(const std::string& path);
 // The same with the samples read into the bands bandsFor(width, height, spp) returns, which
 // must cover the rows in order, instead of into the frame, whose samples() stays empty: for a

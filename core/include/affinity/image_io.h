@@ -7,7 +7,6 @@ namespace affinity {
 // rgb: width * height * 3 linear floats, row-major, top row first.
 void writeRgbExr(const std::string& path, int width, int height, const float* rgb);
 // Tone maps linear radiance (exposure scale, then x / (1 + x) per channel, then sRGB encoding).
-void writeTonemappedPng(const std::string& path, int width, int height, const float* rgb,
-                        float exposure = 1.0f);
+void writeTonemappedPng(const std::string& path, int width, int height, const float* rgb, float exposure = 1.0f);
 
 }  // namespace affinity

@@ -19,8 +19,7 @@ double tonemappedPsnr(const float* image, const float* reference, std::size_t n)
 // the grid of pixel centres, x + motion.x in [0, width-1] and y + motion.y in [0, height-1], so
 // no tap is border-clamped. Images are height x width x 3; NaN when no pixel counts.
 double temporalError(const float* output, const float* previousOutput, const float* reference,
-                     const float* previousReference, const float* motion, const float* valid, int width,
-                     int height);
+                     const float* previousReference, const float* motion, const float* valid, int width, int height);
 
 // Warping error of Lai et al. 2018 ("Learning Blind Video Temporal Consistency"), the flicker of
 // an image sequence on its own, without a reference: mean over the pixels that temporalError
@@ -28,7 +27,7 @@ double temporalError(const float* output, const float* previousOutput, const flo
 // where T is the tone map of tonemappedPsnr (negatives clamped to 0, then x / (1 + x)) and W the
 // same bilinear warp by `motion`. Real changes of the scene count too, so a sequence's reference
 // has a warping error of its own: the value a perfect output would have. NaN when no pixel counts.
-double warpingError(const float* image, const float* previousImage, const float* motion, const float* valid,
-                    int width, int height);
+double warpingError(const float* image, const float* previousImage, const float* motion, const float* valid, int width,
+                    int height);
 
 }  // namespace affinity

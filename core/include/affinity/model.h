@@ -23,10 +23,10 @@ public:
     static Model fromWeights(const Weights& weights, Precision precision = Precision::Auto);
 
     const std::string& source() const;
-    int kernels() const;           // K
-    int affinityFeatures() const;  // F
-    int tapSize() const;           // T
-    int embeddingChannels() const; // E
+    int kernels() const;            // K
+    int affinityFeatures() const;   // F
+    int tapSize() const;            // T
+    int embeddingChannels() const;  // E
     std::int64_t parameterCount() const;
     Precision precision() const;  // what it computes in: Float32 or BFloat16, never Auto
     // Multiply-adds x 2 per pixel of the per-pixel network at `spp` samples per pixel.

@@ -24,15 +24,15 @@ namespace affinity {
 
 // Defaults are the paper's (section 4 and 5).
 struct SvgfSettings {
-    int atrousIterations = 5;        // a-trous passes with step sizes 1, 2, 4, ...; 0 to 10
-    int feedbackIteration = 0;       // the output of this pass is the next frame's colour history
-    float sigmaDepth = 1.0f;         // sigma_z: depth difference relative to the depth gradient
-    float sigmaNormal = 128.0f;      // sigma_n: exponent on max(0, n(p) . n(q))
-    float sigmaLuminance = 4.0f;     // sigma_l: luminance difference in standard deviations
-    float alphaColor = 0.2f;         // EMA weight of the new frame's colour, in (0, 1]
-    float alphaMoments = 0.2f;       // EMA weight of the new frame's luminance moments, in (0, 1]
-    int historyCap = 32;             // history length is counted up to this many frames
-    int spatialVarianceFrames = 4;   // below this history length, variance is estimated spatially
+    int atrousIterations = 5;       // a-trous passes with step sizes 1, 2, 4, ...; 0 to 10
+    int feedbackIteration = 0;      // the output of this pass is the next frame's colour history
+    float sigmaDepth = 1.0f;        // sigma_z: depth difference relative to the depth gradient
+    float sigmaNormal = 128.0f;     // sigma_n: exponent on max(0, n(p) . n(q))
+    float sigmaLuminance = 4.0f;    // sigma_l: luminance difference in standard deviations
+    float alphaColor = 0.2f;        // EMA weight of the new frame's colour, in (0, 1]
+    float alphaMoments = 0.2f;      // EMA weight of the new frame's luminance moments, in (0, 1]
+    int historyCap = 32;            // history length is counted up to this many frames
+    int spatialVarianceFrames = 4;  // below this history length, variance is estimated spatially
     // Reprojection consistency tests for each bilinear tap into the previous frame: the tap's
     // depth may differ from the pixel's by reprojectDepthTolerance times (its screen-space depth
     // gradient + 0.2 % of its depth), and the normals must satisfy n(p) . n(tap) >= this cosine.

@@ -58,9 +58,7 @@ public:
 
 private:
     struct AlignedDelete {
-        void operator()(std::byte* p) const {
-            ::operator delete[](p, std::align_val_t(WeightsFormat::kDataAlignment));
-        }
+        void operator()(std::byte* p) const { ::operator delete[](p, std::align_val_t(WeightsFormat::kDataAlignment)); }
     };
     using AlignedBytes = std::unique_ptr<std::byte[], AlignedDelete>;
 

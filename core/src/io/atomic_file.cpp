@@ -67,8 +67,7 @@ void syncFileToDisk(const std::string& name) {
 
 }  // namespace
 
-void writeAtomically(const std::string& path,
-                     const std::function<void(const std::string& temporaryPath)>& write) {
+void writeAtomically(const std::string& path, const std::function<void(const std::string& temporaryPath)>& write) {
     const std::string temporary = temporaryPathFor(path);
     const TrackedTemporary tracked(temporary);
     try {

@@ -35,21 +35,36 @@ struct TypeLayout {
 
 const std::map<std::string_view, TypeLayout>& knownTypes() {
     static const std::map<std::string_view, TypeLayout> types = {
-        {"box2i", {ValueLayout::Fixed, 16}},         {"box2f", {ValueLayout::Fixed, 16}},
-        {"chromaticities", {ValueLayout::Fixed, 32}}, {"compression", {ValueLayout::Fixed, 1}},
-        {"deepImageState", {ValueLayout::Fixed, 1}}, {"double", {ValueLayout::Fixed, 8}},
-        {"envmap", {ValueLayout::Fixed, 1}},         {"float", {ValueLayout::Fixed, 4}},
-        {"int", {ValueLayout::Fixed, 4}},            {"keycode", {ValueLayout::Fixed, 28}},
-        {"lineOrder", {ValueLayout::Fixed, 1}},      {"m33d", {ValueLayout::Fixed, 72}},
-        {"m33f", {ValueLayout::Fixed, 36}},          {"m44d", {ValueLayout::Fixed, 128}},
-        {"m44f", {ValueLayout::Fixed, 64}},          {"rational", {ValueLayout::Fixed, 8}},
-        {"tiledesc", {ValueLayout::Fixed, 9}},       {"timecode", {ValueLayout::Fixed, 8}},
-        {"v2d", {ValueLayout::Fixed, 16}},           {"v2f", {ValueLayout::Fixed, 8}},
-        {"v2i", {ValueLayout::Fixed, 8}},            {"v3d", {ValueLayout::Fixed, 24}},
-        {"v3f", {ValueLayout::Fixed, 12}},           {"v3i", {ValueLayout::Fixed, 12}},
-        {"string", {ValueLayout::Bytes}},            {"chlist", {ValueLayout::ChannelList}},
-        {"stringvector", {ValueLayout::StringVector}}, {"floatvector", {ValueLayout::FloatVector}},
-        {"preview", {ValueLayout::Preview}},         {"idmanifest", {ValueLayout::IdManifest}},
+        {"box2i", {ValueLayout::Fixed, 16}},
+        {"box2f", {ValueLayout::Fixed, 16}},
+        {"chromaticities", {ValueLayout::Fixed, 32}},
+        {"compression", {ValueLayout::Fixed, 1}},
+        {"deepImageState", {ValueLayout::Fixed, 1}},
+        {"double", {ValueLayout::Fixed, 8}},
+        {"envmap", {ValueLayout::Fixed, 1}},
+        {"float", {ValueLayout::Fixed, 4}},
+        {"int", {ValueLayout::Fixed, 4}},
+        {"keycode", {ValueLayout::Fixed, 28}},
+        {"lineOrder", {ValueLayout::Fixed, 1}},
+        {"m33d", {ValueLayout::Fixed, 72}},
+        {"m33f", {ValueLayout::Fixed, 36}},
+        {"m44d", {ValueLayout::Fixed, 128}},
+        {"m44f", {ValueLayout::Fixed, 64}},
+        {"rational", {ValueLayout::Fixed, 8}},
+        {"tiledesc", {ValueLayout::Fixed, 9}},
+        {"timecode", {ValueLayout::Fixed, 8}},
+        {"v2d", {ValueLayout::Fixed, 16}},
+        {"v2f", {ValueLayout::Fixed, 8}},
+        {"v2i", {ValueLayout::Fixed, 8}},
+        {"v3d", {ValueLayout::Fixed, 24}},
+        {"v3f", {ValueLayout::Fixed, 12}},
+        {"v3i", {ValueLayout::Fixed, 12}},
+        {"string", {ValueLayout::Bytes}},
+        {"chlist", {ValueLayout::ChannelList}},
+        {"stringvector", {ValueLayout::StringVector}},
+        {"floatvector", {ValueLayout::FloatVector}},
+        {"preview", {ValueLayout::Preview}},
+        {"idmanifest", {ValueLayout::IdManifest}},
     };
     return types;
 }
@@ -165,8 +180,7 @@ void checkStringVector(const std::vector<unsigned char>& value) {
 
 // Reads one attribute value, checking that OpenEXR will consume exactly `size` bytes for it
 // and allocate no more than that.
-void checkAttributeValue(HeaderReader& reader, const std::string& name, const std::string& type,
-                         std::uint32_t size) {
+void checkAttributeValue(HeaderReader& reader, const std::string& name, const std::string& type, std::uint32_t size) {
     const auto found = knownTypes().find(type);
     const ValueLayout layout = found == knownTypes().end() ? ValueLayout::Bytes : found->second.layout;
     const auto mismatch = [&](const std::string& expected) {
@@ -174,35 +188,35 @@ void checkAttributeValue(HeaderReader& reader, const std::string& name, const st
                      ", expected " + expected);
     };
     switch (layout) {
-        case ValueLayout::Fixed:
-            if (size != found->second.fixedSize) throw mismatch(std::to_string(found->second.fixedSize));
-            reader.skip(size, "an attribute value");
-            return;
-        case ValueLayout::Bytes:
-            reader.skip(size, "an attribute value");
-            return;
-        case ValueLayout::FloatVector:
-            if (size % 4 != 0) throw mismatch("a multiple of 4");
-            reader.skip(size, "an attribute value");
-            return;
-        case ValueLayout::IdManifest:
-            if (size < 4) throw mismatch("at least 4");
-            reader.skip(size, "an attribute value");
-            return;
-        case ValueLayout::ChannelList:
-            checkChannelList(reader.bytes(size, "the channel list"));
-            return;
-        case ValueLayout::StringVector:
-            checkStringVector(reader.bytes(size, "a string vector"));
-            return;
-        case ValueLayout::Preview: {
-            if (size < 8) throw mismatch("at least 8");
-            const std::vector<unsigned char> dims = reader.bytes(8, "a preview size");
-            const std::uint64_t pixels = std::uint64_t(littleU32(dims.data())) * littleU32(dims.data() + 4);
-            if (pixels * 4 != size - 8u) throw mismatch("8 + 4 * the preview's pixel count");
-            reader.skip(size - 8u, "the preview pixels");
-            return;
-        }
+    case ValueLayout::Fixed:
+        if (size != found->second.fixedSize) throw mismatch(std::to_string(found->second.fixedSize));
+        reader.skip(size, "an attribute value");
+        return;
+    case ValueLayout::Bytes:
+        reader.skip(size, "an attribute value");
+        return;
+    case ValueLayout::FloatVector:
+        if (size % 4 != 0) throw mismatch("a multiple of 4");
+        reader.skip(size, "an attribute value");
+        return;
+    case ValueLayout::IdManifest:
+        if (size < 4) throw mismatch("at least 4");
+        reader.skip(size, "an attribute value");
+        return;
+    case ValueLayout::ChannelList:
+        checkChannelList(reader.bytes(size, "the channel list"));
+        return;
+    case ValueLayout::StringVector:
+        checkStringVector(reader.bytes(size, "a string vector"));
+        return;
+    case ValueLayout::Preview: {
+        if (size < 8) throw mismatch("at least 8");
+        const std::vector<unsigned char> dims = reader.bytes(8, "a preview size");
+        const std::uint64_t pixels = std::uint64_t(littleU32(dims.data())) * littleU32(dims.data() + 4);
+        if (pixels * 4 != size - 8u) throw mismatch("8 + 4 * the preview's pixel count");
+        reader.skip(size - 8u, "the preview pixels");
+        return;
+    }
     }
 }
 
@@ -215,7 +229,8 @@ void checkExrHeader(const std::string& path) {
     HeaderReader reader(path, fileSize);
     reader.skip(4, "the magic number");  // checked by the caller
     const std::uint32_t version = reader.u32("the version field");
-    if ((version & kVersionMask) != 2) throw Error("unsupported OpenEXR version " + std::to_string(version & kVersionMask));
+    if ((version & kVersionMask) != 2)
+        throw Error("unsupported OpenEXR version " + std::to_string(version & kVersionMask));
     if ((version & ~kVersionMask & ~kKnownFlags) != 0) throw Error("unknown OpenEXR flags in the version field");
     if ((version & (kTiledFlag | kNonImageFlag | kMultiPartFlag)) != 0) {
         throw Error("a tiled, deep or multi-part OpenEXR file is not a frame file");

@@ -18,8 +18,7 @@ SampleFrame::SampleFrame(int width, int height, int spp, bool withReference, boo
                     " is invalid: both sides must be at least 1");
     }
     if (spp < 1 || spp > kMaxSpp) {
-        throw Error("samples per pixel " + std::to_string(spp) + " is outside 1.." +
-                    std::to_string(kMaxSpp));
+        throw Error("samples per pixel " + std::to_string(spp) + " is outside 1.." + std::to_string(kMaxSpp));
     }
     if (withSamples) samples_.assign(pixelCount() * spp * kFeatureCount, 0.0f);
     motion_.assign(pixelCount() * 2, 0.0f);

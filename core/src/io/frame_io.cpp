@@ -136,17 +136,20 @@ std::string frameChecksum(const SampleFrame& frame, const std::vector<SampleBand
 
 Imf::Compression toImf(ExrCompression compression) {
     switch (compression) {
-        case ExrCompression::None: return Imf::NO_COMPRESSION;
-        case ExrCompression::Zip: return Imf::ZIP_COMPRESSION;
-        case ExrCompression::Piz: return Imf::PIZ_COMPRESSION;
+    case ExrCompression::None:
+        return Imf::NO_COMPRESSION;
+    case ExrCompression::Zip:
+        return Imf::ZIP_COMPRESSION;
+    case ExrCompression::Piz:
+        return Imf::PIZ_COMPRESSION;
     }
     throw Error("unknown compression " + std::to_string(static_cast<int>(compression)));
 }
 
 // Slice over a strided float buffer; OpenEXR wants non-const pointers even for writing.
 Imf::Slice floatSlice(const float* first, std::size_t xStride, std::size_t yStride) {
-    return Imf::Slice(Imf::FLOAT, const_cast<char*>(reinterpret_cast<const char*>(first)),
-                      xStride * sizeof(float), yStride * sizeof(float));
+    return Imf::Slice(Imf::FLOAT, const_cast<char*>(reinterpret_cast<const char*>(first)), xStride * sizeof(float),
+                      yStride * sizeof(float));
 }
 
 // The frame's samples as one band.
@@ -179,8 +182,7 @@ Imf::FrameBuffer frameBufferFor(const SampleFrame& frame, const SampleBand& band
     buffer.insert(kValidChannel, floatSlice(frame.valid().data(), 1, width));
     if (frame.hasReference()) {
         for (int c = 0; c < 3; ++c) {
-            buffer.insert(kReferenceChannels[c],
-                          floatSlice(frame.reference().data() + c, 3, 3 * width));
+            buffer.insert(kReferenceChannels[c], floatSlice(frame.reference().data() + c, 3, 3 * width));
         }
     }
     return buffer;
@@ -191,8 +193,8 @@ void checkBufferSizes(const SampleFrame& frame) {
     const std::size_t pixels = frame.pixelCount();
     const auto check = [](const char* name, std::size_t actual, std::size_t expected) {
         if (actual != expected) {
-            throw Error(std::string("the ") + name + " buffer holds " + std::to_string(actual) +
-                        " floats, expected " + std::to_string(expected));
+            throw Error(std::string("the ") + name + " buffer holds " + std::to_string(actual) + " floats, expected " +
+                        std::to_string(expected));
         }
     };
     check("samples", frame.samples().size(), pixels * std::size_t(frame.spp()) * kFeatureCount);
@@ -223,8 +225,7 @@ Imf::Header headerFor(const SampleFrame& frame, ExrCompression compression) {
     return header;
 }
 
-void writeExr(const std::string& temporaryPath, const Imf::Header& header,
-              const Imf::FrameBuffer& buffer, int height) {
+void writeExr(const std::string& temporaryPath, const Imf::Header& header, const Imf::FrameBuffer& buffer, int height) {
     // Our own stream: ~OutputFile writes the line offset table and swallows errors, so only
     // the stream state after closing tells whether everything reached the file.
     std::ofstream stream(temporaryPath, std::ios::binary | std::ios::trunc);
@@ -245,14 +246,13 @@ void writeExr(const std::string& temporaryPath, const Imf::Header& header,
 // --- reading --------------------------------------------------------------------------------
 
 template <typename Attribute>
-const Attribute& requireAttribute(const Imf::Header& header, const char* name,
-                                  const char* expectedType) {
+const Attribute& requireAttribute(const Imf::Header& header, const char* name, const char* expectedType) {
     const auto found = header.find(name);
     if (found == header.end()) throw Error(std::string("missing attribute '") + name + "'");
     const auto* typed = dynamic_cast<const Attribute*>(&found.attribute());
     if (typed == nullptr) {
-        throw Error(std::string("attribute '") + name + "' has type '" +
-                    found.attribute().typeName() + "', expected '" + expectedType + "'");
+        throw Error(std::string("attribute '") + name + "' has type '" + found.attribute().typeName() +
+                    "', expected '" + expectedType + "'");
     }
     return *typed;
 }
@@ -282,10 +282,14 @@ std::uint64_t parseSeed(const std::string& text) {
 
 const char* pixelTypeName(Imf::PixelType type) {
     switch (type) {
-        case Imf::UINT: return "UINT";
-        case Imf::HALF: return "HALF";
-        case Imf::FLOAT: return "FLOAT";
-        default: return "unknown";
+    case Imf::UINT:
+        return "UINT";
+    case Imf::HALF:
+        return "HALF";
+    case Imf::FLOAT:
+        return "FLOAT";
+    default:
+        return "unknown";
     }
 }
 
@@ -293,8 +297,7 @@ void checkChannel(const Imf::ChannelList& channels, const std::string& name) {
     const Imf::Channel* channel = channels.findChannel(name);
     if (channel == nullptr) throw Error("missing channel '" + name + "'");
     if (channel->type != Imf::FLOAT) {
-        throw Error("channel '" + name + "' has type " + pixelTypeName(channel->type) +
-                    ", expected FLOAT");
+        throw Error("channel '" + name + "' has type " + pixelTypeName(channel->type) + ", expected FLOAT");
     }
     if (channel->xSampling != 1 || channel->ySampling != 1) {
         throw Error("channel '" + name + "' is subsampled; every channel must have sampling 1");
@@ -326,8 +329,8 @@ bool checkChannels(const Imf::ChannelList& channels, int spp) {
     }
     for (auto it = channels.begin(); it != channels.end(); ++it) {
         if (expected.count(it.name()) == 0) {
-            throw Error(std::string("unexpected channel '") + it.name() + "' (affinity.spp is " +
-                        std::to_string(spp) + ")");
+            throw Error(std::string("unexpected channel '") + it.name() + "' (affinity.spp is " + std::to_string(spp) +
+                        ")");
         }
     }
     return hasReference;
@@ -362,13 +365,17 @@ void readRows(Imf::InputFile& file, const SampleFrame& frame, const std::vector<
 // value here would only make a block be decoded twice.
 int linesPerBlock(Imf::Compression compression) {
     switch (compression) {
-        case Imf::NO_COMPRESSION:
-        case Imf::RLE_COMPRESSION:
-        case Imf::ZIPS_COMPRESSION: return 1;
-        case Imf::ZIP_COMPRESSION:
-        case Imf::PXR24_COMPRESSION: return 16;
-        case Imf::DWAB_COMPRESSION: return 256;
-        default: return 32;  // PIZ, B44, B44A, DWAA
+    case Imf::NO_COMPRESSION:
+    case Imf::RLE_COMPRESSION:
+    case Imf::ZIPS_COMPRESSION:
+        return 1;
+    case Imf::ZIP_COMPRESSION:
+    case Imf::PXR24_COMPRESSION:
+        return 16;
+    case Imf::DWAB_COMPRESSION:
+        return 256;
+    default:
+        return 32;  // PIZ, B44, B44A, DWAA
     }
 }
 
@@ -413,24 +420,23 @@ SampleFrame readFrameFile(const std::string& path, const SampleBandsFor* bandsFo
 
     const int version = intAttribute(header, attr::kVersion);
     if (version != kFormatVersion) {
-        throw Error("unsupported frame file version " + std::to_string(version) +
-                    " (this build reads version " + std::to_string(kFormatVersion) + ")");
+        throw Error("unsupported frame file version " + std::to_string(version) + " (this build reads version " +
+                    std::to_string(kFormatVersion) + ")");
     }
     const Imath::Box2i window = header.dataWindow();
     if (window.min.x != 0 || window.min.y != 0) {
-        throw Error("the data window starts at (" + std::to_string(window.min.x) + ", " +
-                    std::to_string(window.min.y) + "), expected (0, 0)");
+        throw Error("the data window starts at (" + std::to_string(window.min.x) + ", " + std::to_string(window.min.y) +
+                    "), expected (0, 0)");
     }
-    if (window.max.x < 0 || window.max.y < 0 || window.max.x == INT32_MAX ||
-        window.max.y == INT32_MAX) {
+    if (window.max.x < 0 || window.max.y < 0 || window.max.x == INT32_MAX || window.max.y == INT32_MAX) {
         throw Error("the data window is empty or too large");
     }
     const int width = window.max.x + 1;
     const int height = window.max.y + 1;
     const int spp = intAttribute(header, attr::kSpp);
     if (spp < 1 || spp > SampleFrame::kMaxSpp) {
-        throw Error("attribute '" + std::string(attr::kSpp) + "' is " + std::to_string(spp) +
-                    ", expected 1.." + std::to_string(SampleFrame::kMaxSpp));
+        throw Error("attribute '" + std::string(attr::kSpp) + "' is " + std::to_string(spp) + ", expected 1.." +
+                    std::to_string(SampleFrame::kMaxSpp));
     }
 
     FrameInfo info;
@@ -476,9 +482,8 @@ void writeFrame(const std::string& path, const SampleFrame& frame, ExrCompressio
         checkBufferSizes(frame);
         const Imf::Header header = headerFor(frame, compression);
         const Imf::FrameBuffer buffer = frameBufferFor(frame, wholeFrameBand(frame)[0]);
-        writeAtomically(path, [&](const std::string& temporaryPath) {
-            writeExr(temporaryPath, header, buffer, frame.height());
-        });
+        writeAtomically(
+            path, [&](const std::string& temporaryPath) { writeExr(temporaryPath, header, buffer, frame.height()); });
     } catch (const std::bad_alloc&) {
         throw Error(context + "out of memory");
     } catch (const std::exception& e) {
@@ -533,8 +538,7 @@ std::vector<std::string> listFrameFiles(const std::string& directory) {
         for (const fs::directory_entry& entry : fs::directory_iterator(directory)) {
             const std::string name = entry.path().filename().string();
             constexpr std::string_view prefix = "frame_", suffix = ".exr";
-            if (name.size() <= prefix.size() + suffix.size() || !name.starts_with(prefix) ||
-                !name.ends_with(suffix)) {
+            if (name.size() <= prefix.size() + suffix.size() || !name.starts_with(prefix) || !name.ends_with(suffix)) {
                 continue;
             }
             int index = -1;

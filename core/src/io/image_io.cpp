@@ -45,8 +45,7 @@ void closeFile(std::ofstream& stream, const std::string& path) {
 
 // Linear [0, 1] to the sRGB transfer curve, as an 8-bit code.
 unsigned char encodeSrgb(float linear) {
-    const float encoded = linear <= 0.0031308f ? 12.92f * linear
-                                               : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
+    const float encoded = linear <= 0.0031308f ? 12.92f * linear : 1.055f * std::pow(linear, 1.0f / 2.4f) - 0.055f;
     return static_cast<unsigned char>(std::lround(std::clamp(encoded, 0.0f, 1.0f) * 255.0f));
 }
 
@@ -84,8 +83,7 @@ void writeRgbExr(const std::string& path, int width, int height, const float* rg
             header.channels().insert(names[c], Imf::Channel(Imf::FLOAT));
             // OpenEXR wants a non-const pointer even though writing only reads it.
             char* first = const_cast<char*>(reinterpret_cast<const char*>(rgb + c));
-            buffer.insert(names[c], Imf::Slice(Imf::FLOAT, first, pixelStride,
-                                               pixelStride * std::size_t(width)));
+            buffer.insert(names[c], Imf::Slice(Imf::FLOAT, first, pixelStride, pixelStride * std::size_t(width)));
         }
         std::ofstream stream = createFile(temporaryPath);
         {
@@ -99,8 +97,7 @@ void writeRgbExr(const std::string& path, int width, int height, const float* rg
     });
 }
 
-void writeTonemappedPng(const std::string& path, int width, int height, const float* rgb,
-                        float exposure) {
+void writeTonemappedPng(const std::string& path, int width, int height, const float* rgb, float exposure) {
     writeImage("PNG image", path, [&](const std::string& temporaryPath) {
         checkImage(width, height, rgb);
         if (!std::isfinite(exposure) || exposure < 0.0f) {
@@ -116,13 +113,11 @@ void writeTonemappedPng(const std::string& path, int width, int height, const fl
             const auto* bytes = static_cast<const unsigned char*>(data);
             out->insert(out->end(), bytes, bytes + size);
         };
-        if (stbi_write_png_to_func(append, &encoded, width, height, 3, pixels.data(),
-                                   width * 3) == 0) {
+        if (stbi_write_png_to_func(append, &encoded, width, height, 3, pixels.data(), width * 3) == 0) {
             throw Error("PNG encoding failed");
         }
         std::ofstream stream = createFile(temporaryPath);
-        stream.write(reinterpret_cast<const char*>(encoded.data()),
-                     static_cast<std::streamsize>(encoded.size()));
+        stream.write(reinterpret_cast<const char*>(encoded.data()), static_cast<std::streamsize>(encoded.size()));
         closeFile(stream, temporaryPath);
     });
 }

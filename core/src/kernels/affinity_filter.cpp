@@ -64,10 +64,18 @@ private:
             const int channels = source->channels();
             const float* pixels = source->pixel(y % source->height(), 0);  // rings: row y at y % height
             switch (channels) {
-                case 1: std::memcpy(destination, pixels, std::size_t(width_) * sizeof(float)); break;
-                case 3: deinterleave<3>(pixels, destination); break;
-                case 8: transposeEights(pixels, destination); break;
-                default: deinterleave<0>(pixels, destination, channels); break;
+            case 1:
+                std::memcpy(destination, pixels, std::size_t(width_) * sizeof(float));
+                break;
+            case 3:
+                deinterleave<3>(pixels, destination);
+                break;
+            case 8:
+                transposeEights(pixels, destination);
+                break;
+            default:
+                deinterleave<0>(pixels, destination, channels);
+                break;
             }
             destination += std::size_t(channels) * stride_;
         }
@@ -212,7 +220,8 @@ void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int t
     for (int t = 0; t < threads; ++t) {
         spatialRows.emplace_back(spatialSources, std::max(pad, 1), 2 * pad + 1);
         if (temporal != nullptr) {
-            temporalRows.emplace_back(std::vector<const FeatureMap*>{temporal->features, temporal->output, temporal->valid}, 1, 3);
+            temporalRows.emplace_back(
+                std::vector<const FeatureMap*>{temporal->features, temporal->output, temporal->valid}, 1, 3);
         }
     }
 

@@ -17,12 +17,12 @@ namespace affinity {
 struct FilterRowInputs {
     int width;
     int features;
-    std::size_t stride;          // of the spatial rows
-    const float* centre;         // features, signal, a, c (and b when temporal) at row y
-    const float* const* taps;    // per tap row j = 0..T-1: features and signal, or null outside
+    std::size_t stride;        // of the spatial rows
+    const float* centre;       // features, signal, a, c (and b when temporal) at row y
+    const float* const* taps;  // per tap row j = 0..T-1: features and signal, or null outside
     int tapSize;
     int dilation;
-    std::size_t temporalStride;  // of the temporal rows
+    std::size_t temporalStride;        // of the temporal rows
     const float* const* temporalRows;  // rows y-1, y, y+1: warped features, output, validity
 };
 
@@ -64,7 +64,7 @@ VecI<L> laneIndices() {
 // loop needs two address registers rather than one per feature plane.
 template <int L, int kFeatures>
 VecF<L> squaredDistance(const float* centre, const float* neighbour, std::size_t centreStride,
-                      std::size_t neighbourStride, int features) {
+                        std::size_t neighbourStride, int features) {
     VecF<L> partial[4] = {};
     const int count = kFeatures > 0 ? kFeatures : features;
     for (int c = 0; c < count; ++c) {
@@ -91,8 +91,7 @@ template <int L, int kFeatures, int kChannels, bool kCheckColumns>
 void addTap(VectorSums<L, kChannels>& sums, VecF<L> negativeBandwidthSquared, const float* centre,
             std::size_t centreStride, const float* neighbour, std::size_t neighbourStride, const float* signal,
             const float* scale, int features, int column, int width) {
-    const VecF<L> distance =
-        squaredDistance<L, kFeatures>(centre, neighbour, centreStride, neighbourStride, features);
+    const VecF<L> distance = squaredDistance<L, kFeatures>(centre, neighbour, centreStride, neighbourStride, features);
     VecF<L> weight = fastExpNonPositiveLanes<L>(negativeBandwidthSquared * distance);
     if (scale != nullptr) weight *= loadLanes<L>(scale);
     if constexpr (kCheckColumns) {
@@ -150,10 +149,9 @@ void filterStrip(const FilterRowInputs& in, int x, float* output) {
                     const int column = at + i;
                     const float* neighbour = tapRow + column;
                     const float* warpedOutput = neighbour + features * temporalStride;
-                    addTap<L, kFeatures, kChannels, kCheckColumns>(sums, negativeTemporalSquared, centre, stride,
-                                                                   neighbour, temporalStride, warpedOutput,
-                                                                   warpedOutput + kChannels * temporalStride,
-                                                                   features, column, in.width);
+                    addTap<L, kFeatures, kChannels, kCheckColumns>(
+                        sums, negativeTemporalSquared, centre, stride, neighbour, temporalStride, warpedOutput,
+                        warpedOutput + kChannels * temporalStride, features, column, in.width);
                 }
             }
         }
@@ -194,7 +192,8 @@ FilterRowFunction selectRowFunction(int features, std::integer_sequence<int, kCo
 template <int L>
 FilterRowFunction filterRowFunction(bool temporal, int features) {
     constexpr auto counts = std::make_integer_sequence<int, kMaxSpecialisedFeatures>{};
-    return temporal ? selectRowFunction<L, 3, true>(features, counts) : selectRowFunction<L, 3, false>(features, counts);
+    return temporal ? selectRowFunction<L, 3, true>(features, counts)
+                    : selectRowFunction<L, 3, false>(features, counts);
 }
 
 }  // namespace

@@ -33,8 +33,7 @@ PackedGemmBf16::PackedGemmBf16(const float* torchWeights, int outChannels, int i
     if (outChannels <= 0 || inChannels <= 0 || inChannels % 2 != 0)
         throw Error("bfloat16 product: unsupported shape [" + std::to_string(outChannels) + ", " +
                     std::to_string(inChannels) + "] (input channels must be even)");
-    if (!cpuHasAvx512Bf16())
-        throw Error("bfloat16 product: this CPU or build has no AVX512-BF16");
+    if (!cpuHasAvx512Bf16()) throw Error("bfloat16 product: this CPU or build has no AVX512-BF16");
     constexpr int kLanes = 16;
     const int pairs = inChannels / 2;
     std::size_t total = 0;

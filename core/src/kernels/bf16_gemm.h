@@ -35,8 +35,8 @@ public:
     int inChannels() const { return in_; }
     struct Block {
         int firstChannel;
-        int vectors;           // 16-lane vectors of output channels: 1 or 2
-        std::size_t offset;    // into words()
+        int vectors;         // 16-lane vectors of output channels: 1 or 2
+        std::size_t offset;  // into words()
     };
     const std::vector<Block>& blocks() const { return blocks_; }
     const std::uint32_t* words() const { return words_.data(); }
@@ -57,8 +57,7 @@ void gemmBf16(const PackedGemmBf16& w, const std::uint16_t* x, std::size_t xStri
               std::size_t outStride, bool leaky = false);
 
 // The same on FP32 rows (x: rows x inChannels floats, contiguous), rounded to bfloat16 first.
-void gemmBf16(const PackedGemmBf16& w, const float* x, int rows, float* out, std::size_t outStride,
-              bool leaky = false);
+void gemmBf16(const PackedGemmBf16& w, const float* x, int rows, float* out, std::size_t outStride, bool leaky = false);
 
 // dst[i] = toBFloat16(src[i]) for i < count (vectorised where cpuHasAvx512Bf16()).
 void convertToBf16(const float* src, std::size_t count, std::uint16_t* dst);

@@ -114,7 +114,8 @@ void gemmColumns(const BlockArgs& a, const std::uint32_t* x, int rows, float* ou
     int r = 0;
     for (; r + kBlockRows <= rows; r += kBlockRows)
         gemmBlock<kBlockRows, N, HalfTail>(a, x + std::size_t(r) * a.xStride, out + std::size_t(r) * a.outStride);
-    if (r < rows) gemmRest<N, HalfTail>(a, x + std::size_t(r) * a.xStride, rows - r, out + std::size_t(r) * a.outStride);
+    if (r < rows)
+        gemmRest<N, HalfTail>(a, x + std::size_t(r) * a.xStride, rows - r, out + std::size_t(r) * a.outStride);
 }
 
 }  // namespace

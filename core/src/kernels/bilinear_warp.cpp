@@ -72,11 +72,16 @@ void warpRows(const FeatureMap& previous, const float* motion, int begin, int en
 // and 3, the RGB images of the metrics' warps.
 void dispatch(const FeatureMap& previous, const float* motion, int begin, int end, FeatureMap& output) {
     switch (previous.channels()) {
-        case 3: return warpRows<3>(previous, motion, begin, end, output);
-        case 8: return warpRows<8>(previous, motion, begin, end, output);
-        case 16: return warpRows<16>(previous, motion, begin, end, output);
-        case 32: return warpRows<32>(previous, motion, begin, end, output);
-        default: return warpRows<0>(previous, motion, begin, end, output);
+    case 3:
+        return warpRows<3>(previous, motion, begin, end, output);
+    case 8:
+        return warpRows<8>(previous, motion, begin, end, output);
+    case 16:
+        return warpRows<16>(previous, motion, begin, end, output);
+    case 32:
+        return warpRows<32>(previous, motion, begin, end, output);
+    default:
+        return warpRows<0>(previous, motion, begin, end, output);
     }
 }
 

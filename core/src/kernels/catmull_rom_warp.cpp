@@ -106,11 +106,16 @@ void warpCatmullRomRows(const FeatureMap& previous, const float* motion, int beg
     if (begin == end || width == 0) return;
     if (motion == nullptr) throw Error("warpCatmullRom: no motion vectors");
     switch (channels) {
-        case 3: return warpRows<3>(previous, motion, begin, end, output);
-        case 6: return warpRows<6>(previous, motion, begin, end, output);
-        case 9: return warpRows<9>(previous, motion, begin, end, output);
-        case 12: return warpRows<12>(previous, motion, begin, end, output);
-        default: return warpRows<0>(previous, motion, begin, end, output);
+    case 3:
+        return warpRows<3>(previous, motion, begin, end, output);
+    case 6:
+        return warpRows<6>(previous, motion, begin, end, output);
+    case 9:
+        return warpRows<9>(previous, motion, begin, end, output);
+    case 12:
+        return warpRows<12>(previous, motion, begin, end, output);
+    default:
+        return warpRows<0>(previous, motion, begin, end, output);
     }
 }
 

@@ -76,9 +76,9 @@ void CoarseWinograd::rows(const float* coarse, int height, int width, int y0, in
                 const int tiles = std::min(kTilesPerTask, endTile - firstTile);
                 for (int t = 0; t < tiles; ++t) {
                     const float* patchRow[3];
-                    const std::size_t stride = winograd::patchRows<3>(
-                        source, coarseHeight, coarseWidth, coarseRow + firstCoarseTap(py),
-                        2 * (firstTile + t) + firstCoarseTap(px), patch.data(), patchRow);
+                    const std::size_t stride =
+                        winograd::patchRows<3>(source, coarseHeight, coarseWidth, coarseRow + firstCoarseTap(py),
+                                               2 * (firstTile + t) + firstCoarseTap(px), patch.data(), patchRow);
                     if (bf16)
                         patchBf16_(patchRow, stride, in_, inPlane, rounded.data() + std::size_t(t) * in_);
                     else

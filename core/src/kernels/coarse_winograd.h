@@ -35,7 +35,7 @@ public:
 
 private:
     int out_ = 0, in_ = 0;
-    std::array<PackedConv, 9> positions_[2][2];  // [py][px][position i * 3 + j]
+    std::array<PackedConv, 9> positions_[2][2];        // [py][px][position i * 3 + j]
     std::vector<PackedGemmBf16> bf16Positions_[2][2];  // the same in bfloat16 (Precision::BFloat16)
     CoarsePatchTransformBf16 patchBf16_ = nullptr;     // set with bf16Positions_
     std::vector<float> bias_;

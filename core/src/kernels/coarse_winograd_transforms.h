@@ -40,8 +40,7 @@ namespace coarse_lines {
 
 // T: float, or std::uint16_t for V stored as bfloat16.
 template <class V, class T = float>
-void transformPatch(const float* const (&rows)[3], std::size_t pixelStride, int channels, std::size_t plane,
-                    T* dst) {
+void transformPatch(const float* const (&rows)[3], std::size_t pixelStride, int channels, std::size_t plane, T* dst) {
     using winograd_lines::loadLanes, winograd_lines::storeLanes;
     for (int c = 0; c < channels; c += V::kLanes) {
         const int lanes = std::min(V::kLanes, channels - c);

@@ -22,8 +22,8 @@ struct ConvBlockArgs {
     std::size_t tapStride;               // floats of weights per tap
     const float* weights;
     const float* bias;
-    int outStride;     // floats from one output pixel to the next
-    int tailLanes;     // valid lanes of the block's last vector
+    int outStride;  // floats from one output pixel to the next
+    int tailLanes;  // valid lanes of the block's last vector
     bool leaky;
     bool addToOutput;  // start from the output's values instead of the bias
 };
@@ -138,8 +138,7 @@ void convBlock(const ConvBlockArgs& a, int x, float* out) {
     } else {
         for (int ky = a.kyBegin; ky <= a.kyEnd; ++ky) {
             for (int kx = a.kxBegin; kx <= a.kxEnd; ++kx) {
-                const float* w =
-                    a.weights + std::size_t((ky - a.originY) * a.size + kx - a.originX) * a.tapStride;
+                const float* w = a.weights + std::size_t((ky - a.originY) * a.size + kx - a.originX) * a.tapStride;
                 for (int s = 0; s < a.sourceCount; ++s) {
                     const ConvSource& source = a.sources[s];
                     const int channels = source.channels;

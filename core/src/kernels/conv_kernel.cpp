@@ -83,9 +83,8 @@ void convolveRow(const PackedConv& conv, const ConvSource* sources, int sourceCo
     convolveRowPlaced(conv, sources, sourceCount, height, width, y, x0, x1, activation, centred, outputRow);
 }
 
-void convolveRowPlaced(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width,
-                       int y, int x0, int x1, Activation activation, const ConvPlacement& placement,
-                       float* outputRow) {
+void convolveRowPlaced(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width, int y,
+                       int x0, int x1, Activation activation, const ConvPlacement& placement, float* outputRow) {
     ConvBlockArgs a{};
     a.sources = sources;
     a.sourceCount = sourceCount;

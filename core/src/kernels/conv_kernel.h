@@ -72,8 +72,8 @@ private:
 // outputRow points at column 0 of row y of an NHWC output with conv.outChannels() channels.
 // The sources' channel counts must add up to conv.inChannels(); the output must not alias them.
 // An upsampled source is (height + 1) / 2 x (width + 1) / 2.
-void convolveRow(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width,
-                 int y, int x0, int x1, Activation activation, float* outputRow);
+void convolveRow(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width, int y,
+                 int x0, int x1, Activation activation, float* outputRow);
 
 // Where a convolution's window sits and where its output goes, for convolveRowPlaced: output
 // pixel (y, x) reads the size x size taps (y + originY + i, x + originX + j) and is written
@@ -84,8 +84,7 @@ struct ConvPlacement {
     int outPixelStride = 0;
     bool addToOutput = false;
 };
-void convolveRowPlaced(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width,
-                       int y, int x0, int x1, Activation activation, const ConvPlacement& placement,
-                       float* outputRow);
+void convolveRowPlaced(const PackedConv& conv, const ConvSource* sources, int sourceCount, int height, int width, int y,
+                       int x0, int x1, Activation activation, const ConvPlacement& placement, float* outputRow);
 
 }  // namespace affinity

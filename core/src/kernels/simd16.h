@@ -27,9 +27,7 @@ struct Float16 {
         return {_mm512_maskz_loadu_ps(__mmask16((1u << count) - 1u), p)};
     }
     // Stores lanes [0, count), count in 1..16; memory past them is not touched.
-    void storePartial(float* p, int count) const {
-        _mm512_mask_storeu_ps(p, __mmask16((1u << count) - 1u), v);
-    }
+    void storePartial(float* p, int count) const { _mm512_mask_storeu_ps(p, __mmask16((1u << count) - 1u), v); }
     friend Float16 fma(Float16 a, Float16 b, Float16 c) { return {_mm512_fmadd_ps(a.v, b.v, c.v)}; }
     // Half-width forms for a vector whose lanes 8-15 are idle, on a 256-bit value (Half): lanes
     // 0-7 computed as at full width by a 256-bit instruction, on Zen 4 half the work of a 512-bit one.

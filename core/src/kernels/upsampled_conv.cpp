@@ -56,9 +56,8 @@ void UpsampledConv::coarseRow(const ConvSource& coarse, int height, int width, i
     }
 }
 
-void UpsampledConv::unfoldedEdges(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip,
-                                  int height, int width, int y, int x0, int x1, Activation activation,
-                                  float* outRow) const {
+void UpsampledConv::unfoldedEdges(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height,
+                                  int width, int y, int x0, int x1, Activation activation, float* outRow) const {
     // An odd height's last row (an odd width's last column) has no full-resolution row below it,
     // but its folded tap +1 reads the coarse row it lies on.
     const ConvSource both[2] = {coarse, skip};
@@ -68,8 +67,8 @@ void UpsampledConv::unfoldedEdges(const PackedConv& full, const ConvSource& coar
         convolveRow(full, both, 2, height, width, y, width - 1, width, activation, outRow);
 }
 
-void UpsampledConv::row(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height,
-                        int width, int y, int x0, int x1, Activation activation, float* outRow) const {
+void UpsampledConv::row(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width,
+                        int y, int x0, int x1, Activation activation, float* outRow) const {
     coarseRow(coarse, height, width, y, x0, x1, outRow);
     const ConvPlacement added{-1, -1, skip_.outChannels(), true};
     convolveRowPlaced(skip_, &skip, 1, height, width, y, x0, x1, activation, added, outRow);

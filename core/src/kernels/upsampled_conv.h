@@ -40,8 +40,8 @@ private:
     void unfoldedEdges(const PackedConv& full, const ConvSource& coarse, const ConvSource& skip, int height, int width,
                        int y, int x0, int x1, Activation activation, float* outRow) const;
 
-    PackedConv phase_[2][2];  // [row parity][column parity]: 2x2 over the coarse level, with the bias
-    PackedConv skip_;         // 3x3 over the skip input, no bias
+    PackedConv phase_[2][2];         // [row parity][column parity]: 2x2 over the coarse level, with the bias
+    PackedConv skip_;                // 3x3 over the skip input, no bias
     WinogradConv skipWinograd_;      // the same in the Winograd form
     CoarseWinograd coarseWinograd_;  // the phases' coarse part in the Winograd form
 };

@@ -33,8 +33,8 @@ constexpr double kG[kPatch][3] = {{1.0 / 4, 0, 0},
 
 }  // namespace
 
-WinogradConv::WinogradConv(const float* torchWeights, const float* bias, int outChannels, int inChannels,
-                           ConvIsa isa, Precision precision)
+WinogradConv::WinogradConv(const float* torchWeights, const float* bias, int outChannels, int inChannels, ConvIsa isa,
+                           Precision precision)
     : out_(outChannels), in_(inChannels), bias_(std::size_t(std::max(outChannels, 0)), 0.0f) {
     if (outChannels <= 0 || inChannels <= 0)
         throw Error("Winograd convolution: unsupported shape [" + std::to_string(outChannels) + ", " +
@@ -59,13 +59,13 @@ WinogradConv::WinogradConv(const float* torchWeights, const float* bias, int out
     bf16Positions_ = bf16Positions(u, outChannels, inChannels, precision == Precision::BFloat16);
     transforms_ = {winograd_lines::transformPatch<Float8>, winograd_lines::transformOutput<Float8>};
 #if AFFINITY_HAVE_AVX512_KERNEL
-    if (isa == ConvIsa::Avx512) transforms_ = winogradTransformsAvx512();  // PackedConv checked the CPU
+    if (isa == ConvIsa::Avx512) transforms_ = winogradTransformsAvx512();    // PackedConv checked the CPU
     if (!bf16Positions_.empty()) patchBf16_ = winogradPatchTransformBf16();  // bf16Positions checked the CPU
 #endif
 }
 
-void WinogradConv::strip(const ConvSource* sources, int sourceCount, int height, int width, int tileY, int x0,
-                         int x1, Activation activation, bool add, float* const* rows) const {
+void WinogradConv::strip(const ConvSource* sources, int sourceCount, int height, int width, int tileY, int x0, int x1,
+                         Activation activation, bool add, float* const* rows) const {
     // Per thread, reused from call to call: the transformed input and products of kTilesPerTask
     // tiles, a border tile's patch, and where the outputs outside the rows and columns asked for go.
     thread_local AlignedVector<float> v, m;

@@ -17,8 +17,8 @@ void winogradProducts(const std::vector<PackedGemmBf16>& u, const std::uint16_t*
                  std::size_t(u[p].outChannels()));
 }
 
-std::vector<PackedGemmBf16> bf16Positions(const std::vector<std::vector<float>>& u, int outChannels,
-                                          int inChannels, bool bfloat16) {
+std::vector<PackedGemmBf16> bf16Positions(const std::vector<std::vector<float>>& u, int outChannels, int inChannels,
+                                          bool bfloat16) {
     std::vector<PackedGemmBf16> packed;
     if (!bfloat16 || inChannels % 2 != 0) return packed;
     for (const std::vector<float>& weights : u) packed.emplace_back(weights.data(), outChannels, inChannels);

@@ -21,7 +21,7 @@ void winogradProducts(const std::vector<PackedGemmBf16>& u, const std::uint16_t*
 // The bfloat16 forms of a layer's per-position weights u[p] ([out][in] each), or none: for
 // Precision::Float32, and for an odd input channel count (bfloat16 pairs channels; such a layer
 // stays FP32). Throws affinity::Error where bfloat16 is asked for but the CPU lacks it.
-std::vector<PackedGemmBf16> bf16Positions(const std::vector<std::vector<float>>& u, int outChannels,
-                                          int inChannels, bool bfloat16);
+std::vector<PackedGemmBf16> bf16Positions(const std::vector<std::vector<float>>& u, int outChannels, int inChannels,
+                                          bool bfloat16);
 
 }  // namespace affinity

@@ -23,8 +23,8 @@ using WinogradPatchTransform = void (*)(const float* const (&rows)[kWinogradPatc
 // Y = A^T M A + bias for the `channels` output channels of one tile; position (i, j) of M is at
 // m + (i * 6 + j) * plane. Output pixel (r, q) goes to out[r][q]; with `add`, onto the value
 // there (before the activation); `leaky`: leaky ReLU (slope 0.01).
-using WinogradOutputTransform = void (*)(const float* m, std::size_t plane, const float* bias, int channels,
-                                         bool leaky, bool add, float* const (&out)[kWinogradRows][kWinogradRows]);
+using WinogradOutputTransform = void (*)(const float* m, std::size_t plane, const float* bias, int channels, bool leaky,
+                                         bool add, float* const (&out)[kWinogradRows][kWinogradRows]);
 
 struct WinogradTransforms {
     WinogradPatchTransform patch;

@@ -13,7 +13,8 @@ namespace affinity {
 double smape(const float* image, const float* reference, std::size_t n) {
     double sum = 0.0;
     for (std::size_t i = 0; i < n; ++i)
-        sum += std::abs(double(image[i]) - reference[i]) / (std::abs(double(image[i])) + std::abs(double(reference[i])) + 0.01);
+        sum += std::abs(double(image[i]) - reference[i]) /
+               (std::abs(double(image[i])) + std::abs(double(reference[i])) + 0.01);
     return n ? sum / double(n) : 0.0;
 }
 
@@ -71,8 +72,7 @@ double tonemappedPsnr(const float* image, const float* reference, std::size_t n)
 }
 
 double temporalError(const float* output, const float* previousOutput, const float* reference,
-                     const float* previousReference, const float* motion, const float* valid, int width,
-                     int height) {
+                     const float* previousReference, const float* motion, const float* valid, int width, int height) {
     constexpr double kNoPixel = std::numeric_limits<double>::quiet_NaN();
     if (width <= 0 || height <= 0) return kNoPixel;
     // The warp is linear, so W O - W R = W (O - R): one warp of the previous frame's error.
@@ -91,8 +91,8 @@ double temporalError(const float* output, const float* previousOutput, const flo
     });
 }
 
-double warpingError(const float* image, const float* previousImage, const float* motion, const float* valid,
-                    int width, int height) {
+double warpingError(const float* image, const float* previousImage, const float* motion, const float* valid, int width,
+                    int height) {
     constexpr double kNoPixel = std::numeric_limits<double>::quiet_NaN();
     if (width <= 0 || height <= 0) return kNoPixel;
     // Tone-mapped before the warp: the flicker a viewer sees between the displayed frames.

@@ -47,8 +47,8 @@ long long prepareSamples(const float* samples, int count, InputScales scales, fl
         // 32 samples ahead: on Intel the hardware streamer stops at each 4 KiB page and this
         // pass waited on memory (on Zen 4 a prefetch changed nothing). A prefetch never faults;
         // the address is formed as an integer because it may lie past the frame.
-        __builtin_prefetch(reinterpret_cast<const void*>(reinterpret_cast<std::uintptr_t>(raw) +
-                                                         32 * kFeatureCount * sizeof(float)));
+        __builtin_prefetch(
+            reinterpret_cast<const void*>(reinterpret_cast<std::uintptr_t>(raw) + 32 * kFeatureCount * sizeof(float)));
         float* in = input + std::size_t(s) * kFeatureCount;
         const Vec8f low = load8(raw), high = load8(raw + 8);
         // False for NaN and +-Inf; radiance must also not be negative.
@@ -57,7 +57,7 @@ long long prepareSamples(const float* samples, int count, InputScales scales, fl
         bad -= isRadiance & ~lowOk;  // a true comparison is -1
         const Vec8f lowClean = lowOk ? low : Vec8f{};
         store(radiance + std::size_t(s) * kRadianceChannels, lowClean);  // lanes 6-7: padding, overwritten next
-        const Vec8f exposed = lowClean * exposure;  // kept finite: log1p needs it
+        const Vec8f exposed = lowClean * exposure;                       // kept finite: log1p needs it
         const Vec8f finiteExposed = exposed <= largest ? exposed : largest;
         store(in, isRadiance ? log1pNonNegative8(isRadiance ? finiteExposed : Vec8f{}) : lowClean);
         store(in + 8, (highOk ? high : Vec8f{}) * depthFactor);
@@ -82,7 +82,8 @@ void addSampleSums(const float* radiance, int pixels, int spp, bool first, float
         Vec8f sum{};
         if (!first)
             for (int c = 0; c < kSums; ++c) sum[c] = o[c];
-        for (int s = 0; s < spp; ++s) sum += load8(radiance + (std::size_t(p) * spp + std::size_t(s)) * kRadianceChannels);
+        for (int s = 0; s < spp; ++s)
+            sum += load8(radiance + (std::size_t(p) * spp + std::size_t(s)) * kRadianceChannels);
         for (int c = 0; c < kSums; ++c) o[c] = sum[c];
     }
 }
@@ -154,8 +155,7 @@ int Embedding::hiddenChannels() const {
 
 template <class Consume>
 long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, InputScales scales,
-                                  FeatureMap* sampleSums, bool firstSums, const SumsSink* sink,
-                                  Consume consume) const {
+                                  FeatureMap* sampleSums, bool firstSums, const SumsSink* sink, Consume consume) const {
     const int spp = samples.spp;
     const int chunkPixels = std::max(1, kChunkSamples / spp);
     const int chunkSamples = chunkPixels * spp;

@@ -65,8 +65,8 @@ public:
     // Non-finite or negative radiance is treated as 0; returns how many radiance values were.
     // With `sampleSums`, also writes the sums above (height x width x kSampleSumChannels).
     // Multithreaded; the result does not depend on the thread count.
-    long long apply(const float* samples, int height, int width, int spp, InputScales scales,
-                    FeatureMap& output, FeatureMap* sampleSums = nullptr) const {
+    long long apply(const float* samples, int height, int width, int spp, InputScales scales, FeatureMap& output,
+                    FeatureMap* sampleSums = nullptr) const {
         return apply(SampleBands(samples, height, width, spp), height, scales, output, sampleSums);
     }
     // The same on samples in bands of rows: the same result bit for bit.
@@ -100,16 +100,16 @@ private:
     // When sampleSums is given, the chunk's sums go into it (started at 0 if firstSums); else
     // when sink is, to it.
     template <class Consume>
-    long long forEachChunk(const SampleBands& samples, long long pixels, InputScales scales,
-                           FeatureMap* sampleSums, bool firstSums, const SumsSink* sink, Consume consume) const;
+    long long forEachChunk(const SampleBands& samples, long long pixels, InputScales scales, FeatureMap* sampleSums,
+                           bool firstSums, const SumsSink* sink, Consume consume) const;
     long long applyChunks(const SampleBands& samples, int height, InputScales scales, FeatureMap& output,
                           FeatureMap* sampleSums, const SumsSink* sink) const;
 
-    std::vector<PackedConv> layers_;  // each layer as a 1x1 convolution over samples
+    std::vector<PackedConv> layers_;          // each layer as a 1x1 convolution over samples
     std::vector<PackedGemmBf16> bf16Layers_;  // every layer in bfloat16, or none (FP32)
     // The last layer (no activation) on `count` pixels' mean hidden outputs.
     void lastLayer(const float* mean, int count, float* out) const;
-    int widest_ = 0;                  // most outputs of any layer
+    int widest_ = 0;  // most outputs of any layer
 };
 
 }  // namespace affinity

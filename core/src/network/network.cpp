@@ -19,9 +19,7 @@ class Builder {
 public:
     Builder(const Weights& weights, Precision precision) : weights_(weights), precision_(precision) {}
 
-    [[noreturn]] void fail(const std::string& what) const {
-        throw Error("model " + weights_.source() + ": " + what);
-    }
+    [[noreturn]] void fail(const std::string& what) const { throw Error("model " + weights_.source() + ": " + what); }
 
     int config(const std::string& name, int lo, int hi) {
         if (!weights_.has(name)) fail("missing configuration tensor '" + name + "'");
@@ -60,8 +58,8 @@ public:
                  std::to_string(in));
         const float* bias = weights_.floats(prefix + ".bias", {out});
         parameters_ += std::int64_t(w.count) + out;
-        return Conv2d(static_cast<const float*>(w.data), bias, out, int(w.shape[1]), size, defaultConvIsa(),
-                      upsampled, formFor(size, upsampled), precision_);
+        return Conv2d(static_cast<const float*>(w.data), bias, out, int(w.shape[1]), size, defaultConvIsa(), upsampled,
+                      formFor(size, upsampled), precision_);
     }
 
     // Convolutions "<prefix>.conv0", "<prefix>.conv1", ... chained from `in` channels, of which
@@ -122,7 +120,8 @@ private:
 Network buildNetwork(const Weights& weights, Precision precision) {
     precision = resolvePrecision(precision);
     if (precision == Precision::BFloat16 && !bfloat16Supported())
-        throw Error("model " + weights.source() + ": bfloat16 precision needs a CPU with AVX512-BF16 (and an x86-64 "
+        throw Error("model " + weights.source() +
+                    ": bfloat16 precision needs a CPU with AVX512-BF16 (and an x86-64 "
                     "build with AVX-512 kernels); this one has none: use fp32 (or auto, which picks it)");
     Builder b(weights, precision);
     Network n;

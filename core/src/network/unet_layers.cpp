@@ -19,8 +19,8 @@ std::string shapeText(const FeatureMap& map) {
 
 }  // namespace
 
-Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size,
-               ConvIsa isa, int upsampledChannels, ConvForm form, Precision precision)
+Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, int inChannels, int size, ConvIsa isa,
+               int upsampledChannels, ConvForm form, Precision precision)
     : packed_(torchWeights, bias, outChannels, inChannels, size, isa) {
     if (size != 1 && size != 3)  // centred windows only (the kernel also packs 2x2)
         throw Error("Conv2d: unsupported size " + std::to_string(size) + "x" + std::to_string(size));
@@ -33,9 +33,10 @@ Conv2d::Conv2d(const float* torchWeights, const float* bias, int outChannels, in
         bf16Pointwise_.emplace(torchWeights, outChannels, inChannels, bias);
     if (upsampledChannels <= 0) return;
     if (size != 3 || upsampledChannels >= inChannels)
-        throw Error("Conv2d: an upsampled input of " + std::to_string(upsampledChannels) + " channels needs a 3x3 "
-                    "layer with more inputs than that, not " + std::to_string(size) + "x" + std::to_string(size) +
-                    " over " + std::to_string(inChannels));
+        throw Error("Conv2d: an upsampled input of " + std::to_string(upsampledChannels) +
+                    " channels needs a 3x3 "
+                    "layer with more inputs than that, not " +
+                    std::to_string(size) + "x" + std::to_string(size) + " over " + std::to_string(inChannels));
     upsampled_.emplace(torchWeights, bias, outChannels, upsampledChannels, inChannels - upsampledChannels, isa,
                        precision);
 }
@@ -80,8 +81,7 @@ void Conv2d::apply(const FeatureMap& input, Activation activation, FeatureMap& o
     run(&source, 1, input.height(), input.width(), activation, output);
 }
 
-void Conv2d::apply(const FeatureMap& first, const FeatureMap& second, Activation activation,
-                   FeatureMap& output) const {
+void Conv2d::apply(const FeatureMap& first, const FeatureMap& second, Activation activation, FeatureMap& output) const {
     if (first.height() != second.height() || first.width() != second.width())
         throw Error("Conv2d: concatenated inputs differ in size: " + shapeText(first) + " and " + shapeText(second));
     if (first.channels() + second.channels() != inChannels())
@@ -120,9 +120,8 @@ void Conv2d::checkRowInputs(const ConvSource* sources, int sourceCount, int heig
         throw Error("Conv2d: the inputs have " + std::to_string(channels) + " channels, the layer expects " +
                     std::to_string(inChannels()));
     if (y < 0 || y >= height || x0 < 0 || x1 > width || x0 > x1)
-        throw Error("Conv2d: row " + std::to_string(y) + ", columns " + std::to_string(x0) + ".." +
-                    std::to_string(x1) + " are outside a " + std::to_string(height) + "x" + std::to_string(width) +
-                    " image");
+        throw Error("Conv2d: row " + std::to_string(y) + ", columns " + std::to_string(x0) + ".." + std::to_string(x1) +
+                    " are outside a " + std::to_string(height) + "x" + std::to_string(width) + " image");
 }
 
 void Conv2d::applyRow(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1,
@@ -131,8 +130,8 @@ void Conv2d::applyRow(const ConvSource* sources, int sourceCount, int height, in
     row(sources, sourceCount, height, width, y, x0, x1, activation, outRow);
 }
 
-void Conv2d::applyRowGroup(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0,
-                           int x1, Activation activation, float* const* rows) const {
+void Conv2d::applyRowGroup(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
+                           Activation activation, float* const* rows) const {
     checkRowInputs(sources, sourceCount, height, width, y0, x0, x1);
     bool nullsPastTheImage = true;
     for (int r = 0; r < kWinogradRows; ++r) nullsPastTheImage &= (rows[r] == nullptr) == (y0 + r >= height);

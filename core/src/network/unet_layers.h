@@ -74,8 +74,7 @@ private:
              FeatureMap& output) const;
     // Whether the folded form applies to these sources.
     bool folds(const ConvSource* sources, int sourceCount) const;
-    void checkRowInputs(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0,
-                        int x1) const;
+    void checkRowInputs(const ConvSource* sources, int sourceCount, int height, int width, int y, int x0, int x1) const;
     // A group of rows (null past the image), through the folded or Winograd form where they apply.
     void rowGroup(const ConvSource* sources, int sourceCount, int height, int width, int y0, int x0, int x1,
                   Activation activation, float* const* rows) const;

@@ -60,8 +60,7 @@ bool isValidUtf8(std::string_view text) {
         }
         // Overlong encodings, surrogates and values past U+10FFFF are not UTF-8.
         static constexpr std::uint32_t kSmallest[5] = {0, 0, 0x80, 0x800, 0x10000};
-        if (codePoint < kSmallest[length] || codePoint > 0x10FFFF ||
-            (codePoint >= 0xD800 && codePoint <= 0xDFFF)) {
+        if (codePoint < kSmallest[length] || codePoint > 0x10FFFF || (codePoint >= 0xD800 && codePoint <= 0xDFFF)) {
             return false;
         }
         i += length;
@@ -91,9 +90,8 @@ public:
 private:
     void require(std::size_t count, const std::string& what) const {
         if (count > end_ - position_) {
-            throw Error(what + " at byte " + std::to_string(position_) + " needs " +
-                        std::to_string(count) + " bytes but the header ends at byte " +
-                        std::to_string(end_));
+            throw Error(what + " at byte " + std::to_string(position_) + " needs " + std::to_string(count) +
+                        " bytes but the header ends at byte " + std::to_string(end_));
         }
     }
 
@@ -127,8 +125,7 @@ struct TensorRecord {
 };
 
 // Reads record `index`; checks everything that does not depend on other records.
-TensorRecord readRecord(HeaderCursor& cursor, std::uint32_t index, std::uint64_t dataBegin,
-                        std::uint64_t dataEnd) {
+TensorRecord readRecord(HeaderCursor& cursor, std::uint32_t index, std::uint64_t dataBegin, std::uint64_t dataEnd) {
     const std::string label = "tensor record " + std::to_string(index);
     const std::uint32_t nameLength = cursor.u32(label + ": the name length");
     TensorRecord record;
@@ -141,10 +138,8 @@ TensorRecord readRecord(HeaderCursor& cursor, std::uint32_t index, std::uint64_t
     if (!isValidUtf8(record.view.name)) throw Error(label + ": the name is not valid UTF-8");
 
     const std::uint32_t dtype = cursor.u32(tensorLabel + ": the dtype");
-    if (dtype != static_cast<std::uint32_t>(DType::Float32) &&
-        dtype != static_cast<std::uint32_t>(DType::Int32)) {
-        throw Error(tensorLabel + " has unknown dtype " + std::to_string(dtype) +
-                    " (0 = float32, 1 = int32)");
+    if (dtype != static_cast<std::uint32_t>(DType::Float32) && dtype != static_cast<std::uint32_t>(DType::Int32)) {
+        throw Error(tensorLabel + " has unknown dtype " + std::to_string(dtype) + " (0 = float32, 1 = int32)");
     }
     record.view.dtype = static_cast<DType>(dtype);
 
@@ -169,20 +164,18 @@ TensorRecord readRecord(HeaderCursor& cursor, std::uint32_t index, std::uint64_t
     record.offset = cursor.u64(tensorLabel + ": the data offset");
     record.byteSize = cursor.u64(tensorLabel + ": the data byte size");
     if (record.byteSize != 4 * count) {
-        throw Error(tensorLabel + " has data byte size " + std::to_string(record.byteSize) +
-                    " but its shape " + shapeText(record.view.shape) + " needs " +
-                    std::to_string(4 * count));
+        throw Error(tensorLabel + " has data byte size " + std::to_string(record.byteSize) + " but its shape " +
+                    shapeText(record.view.shape) + " needs " + std::to_string(4 * count));
     }
     if (record.offset % WeightsFormat::kDataAlignment != 0) {
-        throw Error(tensorLabel + " has data offset " + std::to_string(record.offset) +
-                    ", not a multiple of " + std::to_string(WeightsFormat::kDataAlignment));
+        throw Error(tensorLabel + " has data offset " + std::to_string(record.offset) + ", not a multiple of " +
+                    std::to_string(WeightsFormat::kDataAlignment));
     }
     // Written as subtractions so that no sum of file values can wrap around.
-    if (record.offset < dataBegin || record.offset > dataEnd ||
-        record.byteSize > dataEnd - record.offset) {
+    if (record.offset < dataBegin || record.offset > dataEnd || record.byteSize > dataEnd - record.offset) {
         throw Error(tensorLabel + " has data at bytes [" + std::to_string(record.offset) + ", +" +
-                    std::to_string(record.byteSize) + ") outside the data section [" +
-                    std::to_string(dataBegin) + ", " + std::to_string(dataEnd) + ")");
+                    std::to_string(record.byteSize) + ") outside the data section [" + std::to_string(dataBegin) +
+                    ", " + std::to_string(dataEnd) + ")");
     }
     record.view.count = static_cast<std::size_t>(count);
     return record;
@@ -196,8 +189,7 @@ void checkNoOverlap(std::vector<const TensorRecord*> records) {
         const TensorRecord& after = *records[i];
         // Both ranges are inside the data section, so offset + byteSize cannot overflow here.
         if (after.offset < before.offset + before.byteSize) {
-            throw Error("the data of tensors '" + before.view.name + "' and '" + after.view.name +
-                        "' overlap");
+            throw Error("the data of tensors '" + before.view.name + "' and '" + after.view.name + "' overlap");
         }
     }
 }

@@ -10,9 +10,8 @@ DenoisedFile denoiseFrameFile(Denoiser& denoiser, const std::string& path, Noisy
     DenoisedFile result;
     std::vector<SampleBand> bands;
     try {
-        result.frame = readFrame(path, [&](int width, int height, int spp) {
-            return bands = denoiser.sampleBands(width, height, spp);
-        });
+        result.frame = readFrame(
+            path, [&](int width, int height, int spp) { return bands = denoiser.sampleBands(width, height, spp); });
     } catch (...) {
         if (!bands.empty()) denoiser.discardSamples();
         throw;

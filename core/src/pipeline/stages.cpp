@@ -195,7 +195,8 @@ void Stages::parametersAndAccumulation(const UnetTail& tail, int begin, int end,
         head.outChannels() != net.headChannels())
         throw Error("denoise: the model's last layers do not fit together");
     const int E = embedding.channels(), C = filterIn.channels();
-    if (C != signal.channels()) throw Error("denoise: the filter's input and the accumulated signal differ in channels");
+    if (C != signal.channels())
+        throw Error("denoise: the filter's input and the accumulated signal differ in channels");
     const int tiles = (columns + kConvTileWidth - 1) / kConvTileWidth;
     // The convolution runs kWinogradRows rows at a time (its Winograd form's tiles); a group
     // reaching past the band is recomputed by the neighbouring band, but only the band's rows go on.

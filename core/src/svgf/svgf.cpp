@@ -86,8 +86,7 @@ void checkSettings(const SvgfSettings& s) {
         fail("feedbackIteration must be in 0..atrousIterations - 1");
     if (!(s.sigmaDepth >= 0.0f) || !std::isfinite(s.sigmaDepth)) fail("sigmaDepth must be finite and >= 0");
     if (!(s.sigmaNormal >= 0.0f) || !(s.sigmaNormal <= 1e6f)) fail("sigmaNormal must be in [0, 1e6]");
-    if (!(s.sigmaLuminance > 0.0f) || !std::isfinite(s.sigmaLuminance))
-        fail("sigmaLuminance must be finite and > 0");
+    if (!(s.sigmaLuminance > 0.0f) || !std::isfinite(s.sigmaLuminance)) fail("sigmaLuminance must be finite and > 0");
     if (!(s.alphaColor > 0.0f && s.alphaColor <= 1.0f)) fail("alphaColor must be in (0, 1]");
     if (!(s.alphaMoments > 0.0f && s.alphaMoments <= 1.0f)) fail("alphaMoments must be in (0, 1]");
     if (s.historyCap < 1) fail("historyCap must be >= 1");
@@ -212,7 +211,8 @@ void Svgf::State::allocate(int width, int height) {
     next.height = height;
     // The widest a-trous tap is 2 * 2^(iterations - 1) pixels away, the spatial variance 3;
     // taps at least a row's width away are skipped, never read.
-    const int reach = std::max(kSpatialVarianceRadius, settings.atrousIterations > 0 ? 1 << settings.atrousIterations : 0);
+    const int reach =
+        std::max(kSpatialVarianceRadius, settings.atrousIterations > 0 ? 1 << settings.atrousIterations : 0);
     next.pad = std::max(1, std::min(reach, width - 1));
     next.stride = std::size_t(2 * next.pad + width + kLanes);
     if (next == layout) return;
@@ -380,7 +380,8 @@ void Svgf::State::reprojectAndAccumulate(const SampleFrameView& frame, bool useH
                 const int x0 = int(std::floor(px)), y0 = int(std::floor(py));
                 const float fx = px - float(x0), fy = py - float(y0);
                 const float z = depth[i];
-                const float tolerance = settings.reprojectDepthTolerance * (depthWidth[i] + kReprojectRelativeDepth * z);
+                const float tolerance =
+                    settings.reprojectDepthTolerance * (depthWidth[i] + kReprojectRelativeDepth * z);
                 const float n[4] = {normal[0][i], normal[1][i], normal[2][i], normal[3][i]};
                 for (int tap = 0; tap < 4; ++tap) {
                     const int tx = x0 + (tap & 1), ty = y0 + (tap >> 1);
@@ -405,7 +406,8 @@ void Svgf::State::reprojectAndAccumulate(const SampleFrameView& frame, bool useH
                 const float alpha = std::max(settings.alphaColor, 1.0f / length);
                 const float alphaMoments = std::max(settings.alphaMoments, 1.0f / length);
                 for (int k = 0; k < 3; ++k) c[k] = alpha * c[k] + (1.0f - alpha) * sumColour[k] * inverse;
-                for (int k = 0; k < 2; ++k) m[k] = alphaMoments * m[k] + (1.0f - alphaMoments) * sumMoments[k] * inverse;
+                for (int k = 0; k < 2; ++k)
+                    m[k] = alphaMoments * m[k] + (1.0f - alphaMoments) * sumMoments[k] * inverse;
             }
             for (int k = 0; k < 3; ++k) out[k][i] = c[k];
             moment1[i] = m[0];
@@ -431,7 +433,8 @@ void Svgf::State::estimateSpatialVariance() {
             for (int l = 0; l < lanes; ++l) needed = needed || history[i + std::size_t(l)] < threshold;
             if (!needed) continue;
             const CentreGuides centre = centreGuides(i);
-            Vec8f sumWeight = broadcast8(1.0f), sum1 = load8(moments[0].data() + i), sum2 = load8(moments[1].data() + i);
+            Vec8f sumWeight = broadcast8(1.0f), sum1 = load8(moments[0].data() + i),
+                  sum2 = load8(moments[1].data() + i);
             for (int dy = -r; dy <= r; ++dy) {
                 if (y + dy < 0 || y + dy >= height) continue;
                 for (int dx = -r; dx <= r; ++dx) {
@@ -502,8 +505,7 @@ void Svgf::State::atrousPass(int step, int from, int to) {
                     if ((dx == 0 && dy == 0) || std::abs(dx * step) >= width) continue;
                     const std::size_t j = layout.at(x + dx * step, ty);
                     Vec8f depthExponent, normalTerm;
-                    guideTerms(centre, j, float(step) * std::sqrt(float(dx * dx + dy * dy)), depthExponent,
-                               normalTerm);
+                    guideTerms(centre, j, float(step) * std::sqrt(float(dx * dx + dy * dy)), depthExponent, normalTerm);
                     const Vec8f r = load8(in[0].data() + j), g = load8(in[1].data() + j), b = load8(in[2].data() + j);
                     const Vec8f luminanceExponent = abs8(centreLuminance - luminance8(r, g, b)) * scale;
                     const Vec8f w = edgeWeight(kAtrousKernel[std::abs(dx)] * kAtrousKernel[std::abs(dy)], normalTerm,
@@ -567,9 +569,7 @@ void Svgf::State::keepHistory() {
     hasHistory = true;
 }
 
-std::vector<float> Svgf::denoise(const SampleFrame& frame) {
-    return denoise(frame.view("svgf"));
-}
+std::vector<float> Svgf::denoise(const SampleFrame& frame) { return denoise(frame.view("svgf")); }
 
 std::vector<float> Svgf::denoise(const SampleFrameView& frame) {
     checkFrame(frame);
