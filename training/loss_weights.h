@@ -25,12 +25,18 @@ inline constexpr double kTemporalWeight = 0.25;
 // bounces) the median lies below the mean and the output comes out dark. A cell's mean averages
 // coarseCell^2 pixels of the target, so its median is close to its mean: the term asks the filter
 // to spread a rare bright sample's energy over its neighbourhood rather than drop it.
+//
+// firstFrame weighs the image terms (SMAPE, coarse) of a sequence's first frame against the
+// others' 1: that frame has no history, as every frame after a camera cut, and is the frame a
+// temporal denoiser does worst. The reported spatial and coarse terms stay the plain means over
+// frames, so that runs with different weights compare.
 struct LossWeights {
     double temporal = kTemporalWeight;
     double absoluteTemporal = 0;
     bool warpedTemporal = false;
     double coarse = 0;
     int coarseCell = 8;
+    double firstFrame = 1;
 };
 
 }  // namespace affinity::train

@@ -79,11 +79,18 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     at::Tensor spatial = at::zeros({}, options), temporal = at::zeros({}, options);
     at::Tensor absoluteTemporal = at::zeros({}, options), coarse = at::zeros({}, options);
     at::Tensor regulariser = at::zeros({}, options);
+    // The image terms weighted (the first frame by weights.firstFrame), for the total.
+    at::Tensor weightedSpatial = at::zeros({}, options), weightedCoarse = at::zeros({}, options);
     for (std::size_t t = 0; t < frames; ++t) {
-        spatial = spatial + smapeLoss(outputs[t], references[t]);
+        const double frameWeight = t == 0 ? weights.firstFrame : 1.0;
+        const at::Tensor frameSpatial = smapeLoss(outputs[t], references[t]);
+        spatial = spatial + frameSpatial;
+        weightedSpatial = weightedSpatial + frameWeight * frameSpatial;
         if (weights.coarse != 0) {
-            coarse = coarse +
-                     smapeLoss(cellMeans(outputs[t], weights.coarseCell), cellMeans(references[t], weights.coarseCell));
+            const at::Tensor frameCoarse =
+                smapeLoss(cellMeans(outputs[t], weights.coarseCell), cellMeans(references[t], weights.coarseCell));
+            coarse = coarse + frameCoarse;
+            weightedCoarse = weightedCoarse + frameWeight * frameCoarse;
         }
         if (t > 0) {
             TemporalPair pair;
@@ -108,8 +115,9 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     terms.absoluteTemporal = absoluteTemporal / pairs;
     terms.coarse = coarse / double(frames);
     terms.regulariser = regulariser / double(frames);
-    terms.total = terms.spatial + weights.temporal * terms.temporal +
-                  weights.absoluteTemporal * terms.absoluteTemporal + weights.coarse * terms.coarse +
+    const double frameWeights = weights.firstFrame + double(frames - 1);
+    terms.total = weightedSpatial / frameWeights + weights.temporal * terms.temporal +
+                  weights.absoluteTemporal * terms.absoluteTemporal + weights.coarse * weightedCoarse / frameWeights +
                   kRegulariserWeight * terms.regulariser;
     return terms;
 }

@@ -78,6 +78,24 @@ TEST(TrainingLoss, TermsFollowTheDefinition) {
     EXPECT_EQ(terms.coarse.item<double>(), 0.0);
 }
 
+TEST(TrainingLoss, TheFirstFrameWeighsTheImageTermsOfTheTotalOnly) {
+    // Frame 0 errs (SMAPE 0.5 / 2.51), frame 1 is exact; with weight 3 on frame 0 its image terms
+    // count 3 / (3 + 1) of the total's, while the reported spatial term stays the plain mean.
+    const torch::Tensor o0 = torch::full({1, 3, 2, 2}, 1.0), o1 = torch::full({1, 3, 2, 2}, 2.0);
+    const torch::Tensor r0 = torch::full({1, 3, 2, 2}, 1.5), r1 = torch::full({1, 3, 2, 2}, 2.0);
+    train::LossWeights weights;
+    weights.temporal = 0;
+    weights.coarse = 1;
+    weights.firstFrame = 3;
+    const train::LossTerms terms = train::sequenceLoss({o0, o1}, {r0, r1}, {}, weights);
+    const double first = 0.5 / 2.51;  // constant images: a cell's mean is the pixel value
+    EXPECT_NEAR(terms.spatial.item<double>(), first / 2, 1e-6);
+    EXPECT_NEAR(terms.coarse.item<double>(), first / 2, 1e-6);
+    EXPECT_NEAR(terms.total.item<double>(), 2 * (3 * first / 4), 1e-6);
+    weights.firstFrame = 1;  // the plain means again
+    EXPECT_NEAR(train::sequenceLoss({o0, o1}, {r0, r1}, {}, weights).total.item<double>(), 2 * (first / 2), 1e-6);
+}
+
 TEST(TrainingLoss, CellMeansAverageBlocksAndPartialBlocksOverTheirPixels) {
     // 3 x 5 image, cells of 2: blocks rows {0,1},{2} x columns {0,1},{2,3},{4}.
     const torch::Tensor image = torch::arange(15, torch::kDouble).view({1, 1, 3, 5});
@@ -268,6 +286,11 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
     }
     options.loss.coarseCell = 0;
     EXPECT_THROW(train::runTraining(options), Error);
+    options.loss.coarseCell = 8;
+    for (double bad : {0.0, -1.0, double(NAN)}) {
+        options.loss.firstFrame = bad;
+        expectRejectedNaming(options, "first-frame weight");
+    }
     EXPECT_FALSE(fs::exists("unused-out"));
 }
 
