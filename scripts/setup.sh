@@ -9,7 +9,7 @@ debian_packages=(
   build-essential cmake ninja-build pkg-config
   libembree-dev libtbb-dev libopenexr-dev nlohmann-json3-dev libglm-dev libstb-dev
   libgtest-dev libgmock-dev libbenchmark-dev
-  clang libclang-rt-14-dev
+  clang clang-format libclang-rt-14-dev
   libtorch-dev libopenblas0-pthread libdnnl-dev ocl-icd-opencl-dev
   python3 python3-dev python3-venv
   debootstrap

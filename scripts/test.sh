@@ -12,6 +12,9 @@ jobs=${AFFINITY_JOBS:-2}
 echo "== Python lint (ruff, pyproject.toml)"
 .venv/bin/ruff check .
 
+echo "== C++ format (.clang-format)"
+scripts/check_format.sh
+
 echo "== C++ tests (Release)"
 ctest --test-dir build --output-on-failure -j "$jobs"
 
