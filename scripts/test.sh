@@ -34,6 +34,9 @@ scripts/in_py313_root.sh python -m pip install -q --no-deps --no-index --disable
 scripts/in_py313_root.sh env PYTHONPATH="$root/build-py313/python:$root/blender_addon" AFFINITY_REQUIRE_CORE=1 \
   python -m pytest -q -W error tests/blender
 
+echo "== The render engine through Blender's own command line (Debian 13's blender 4.3 program)"
+scripts/test_blender_binary.sh
+
 echo "== C++ tests under AddressSanitizer + UndefinedBehaviorSanitizer"
 # libtorch is not instrumented and the training code is covered by the Release run above.
 cmake -S . -B build-sanitize -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DAFFINITY_SANITIZE=ON \

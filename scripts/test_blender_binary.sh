@@ -7,7 +7,7 @@
 #   2. `blender -b shot.blend -s 3 -e 4 -a` (a farm chunk) equals frames 3-4 of the whole run
 #      (warm-up frames 2 >= the chunk's distance to the animation's start);
 #   3. `blender -b cycles.blend -E AFFINITY_DENOISER -a` renders a Cycles .blend with the engine.
-# Not part of scripts/test.sh (the package is about 400 MB); run after scripts/setup.sh.
+# scripts/test.sh runs it after the bpy suites (the package's first install takes about a minute).
 #
 # Usage: scripts/test_blender_binary.sh
 set -euo pipefail
