@@ -43,9 +43,9 @@ scene.render.filepath = '//engine/frame_'
 bpy.ops.wm.save_as_mainfile(filepath='$repo/$work/shot.blend')
 " >"$work/build_scene.log" 2>&1 || { tail -n 30 "$work/build_scene.log"; exit 1; }
 
-start=$(date +%s.%N)
+start=$(date +%s)
 in_root blender -b "$work/shot.blend" -a >"$work/animation.log" 2>&1 || { tail -n 30 "$work/animation.log"; exit 1; }
-echo "blender -b shot.blend -a: $(ls "$work/engine" | tr '\n' ' ')($(echo "$(date +%s.%N) - $start" | bc) s)"
+echo "blender -b shot.blend -a: $(ls "$work/engine" | tr '\n' ' ')($(($(date +%s) - start)) s)"
 in_root blender -b "$work/shot.blend" -o "//chunk/frame_" -s 3 -e 4 -a >"$work/chunk.log" 2>&1 \
   || { tail -n 30 "$work/chunk.log"; exit 1; }
 echo "blender -b shot.blend -s 3 -e 4 -a: $(ls "$work/chunk" | tr '\n' ' ')"
