@@ -102,16 +102,29 @@ def cycles_namespace() -> dict[str, Any]:
     return namespace
 
 
-def _make_engine_class() -> type:
-    """The capture engine: Cycles with in-memory pass capture, or presenting a given frame."""
+Hooks = dict[str, Callable[..., None]]
+
+
+def cycles_based_engine(class_name: str, idname: str, label: str, doc: str,
+                        hooks: Callable[[dict[str, Any]], Hooks]) -> type:
+    """A RenderEngine class that is Cycles (``cycles_namespace``) but for ``update``, ``render``
+    and ``render_frame_finish``, which ``hooks(cycles_methods)`` returns, calling Cycles' own
+    where they want to."""
     import bpy
 
     namespace = cycles_namespace()
-    cycles_methods = dict(namespace)
 
     def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
         bpy.types.RenderEngine.__init__(self, *args, **kwargs)
         self.session = None
+
+    namespace.update(hooks(dict(namespace)))
+    namespace.update(__init__=__init__, __doc__=doc, bl_idname=idname, bl_label=label)
+    return type(class_name, (bpy.types.RenderEngine,), namespace)
+
+
+def _capture_hooks(cycles_methods: dict[str, Any]) -> Hooks:
+    """The capture engine: Cycles with in-memory pass capture, or presenting a given frame."""
 
     def update(self: Any, data: Any, depsgraph: Any) -> None:
         if session.present is None:
@@ -135,16 +148,7 @@ def _make_engine_class() -> type:
         if session.sink is not None and not self.test_break():
             session.sink(self.get_result())
 
-    namespace.update(
-        __init__=__init__,
-        update=update,
-        render=render,
-        render_frame_finish=render_frame_finish,
-        __doc__="Cycles with in-memory pass capture (internal to the Affinity Denoiser).",
-        bl_idname=IDNAME,
-        bl_label="Cycles (Affinity Denoiser capture)",
-    )
-    return type("AffinityCyclesEngine", (bpy.types.RenderEngine,), namespace)
+    return {"update": update, "render": render, "render_frame_finish": render_frame_finish}
 
 
 def is_registered() -> bool:
@@ -156,7 +160,9 @@ def register() -> None:
     import bpy
 
     if _engine_class is None:
-        _engine_class = _make_engine_class()
+        _engine_class = cycles_based_engine(
+            "AffinityCyclesEngine", IDNAME, "Cycles (Affinity Denoiser capture)",
+            "Cycles with in-memory pass capture (internal to the Affinity Denoiser).", _capture_hooks)
     bpy.utils.register_class(_engine_class)
 
 

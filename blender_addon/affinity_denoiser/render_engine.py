@@ -113,16 +113,7 @@ def _render_final(engine_instance: Any, depsgraph: Any) -> None:
         engine_instance.end_result(result, cancel=cancelled)
 
 
-def _make_engine_class() -> type:
-    import bpy
-
-    namespace = engine.cycles_namespace()
-    cycles_methods = dict(namespace)
-
-    def __init__(self: Any, *args: Any, **kwargs: Any) -> None:
-        bpy.types.RenderEngine.__init__(self, *args, **kwargs)
-        self.session = None
-
+def _hooks(cycles_methods: dict[str, Any]) -> engine.Hooks:
     def update(self: Any, data: Any, depsgraph: Any) -> None:
         # A final render's scene is synced by the worker's Cycles, not here.
         if self.is_preview:
@@ -146,16 +137,7 @@ def _make_engine_class() -> type:
         if self.is_preview:
             cycles_methods["render_frame_finish"](self)
 
-    namespace.update(
-        __init__=__init__,
-        update=update,
-        render=render,
-        render_frame_finish=render_frame_finish,
-        __doc__="Cycles, each final frame denoised by the Affinity Denoiser.",
-        bl_idname=IDNAME,
-        bl_label="Cycles + Affinity Denoiser",
-    )
-    return type("AffinityDenoiserEngine", (bpy.types.RenderEngine,), namespace)
+    return {"update": update, "render": render, "render_frame_finish": render_frame_finish}
 
 
 def _cycles_panels() -> list[Any]:
@@ -180,7 +162,9 @@ def register() -> None:
     import bpy
 
     if _engine_class is None:
-        _engine_class = _make_engine_class()
+        _engine_class = engine.cycles_based_engine(
+            "AffinityDenoiserEngine", IDNAME, "Cycles + Affinity Denoiser",
+            "Cycles, each final frame denoised by the Affinity Denoiser.", _hooks)
     bpy.utils.register_class(_engine_class)
     for panel in _cycles_panels():
         panel.COMPAT_ENGINES.add(IDNAME)
