@@ -82,9 +82,10 @@ def sample_features(p: dict[str, np.ndarray], camera: Camera, ray_start: np.ndar
     if "denoising_depth" in p:
         denoising_depth = p["denoising_depth"][..., 0]
         start = 0.0 if denoising_depth_from_eye() else ray_start
-        # A direct miss: 0 up to 5.1, inf in 5.2, about the far clip distance in 5.3.
-        reached = (denoising_depth > 0.0) & np.isfinite(denoising_depth)
-        path_length = np.where(reached, denoising_depth + start, 0.0)
+        # A direct miss: 0 up to 5.1, the largest float32 in 5.2 (which must not reach a sum),
+        # about the far clip distance in 5.3 (left to the miss test below).
+        reached = (denoising_depth > 0.0) & (denoising_depth < np.finfo(np.float32).max)
+        path_length = np.where(reached, denoising_depth, 0.0) + np.where(reached, start, 0.0)
     else:  # Cycles without a denoising depth pass: the first hit's distance
         path_length = first_distance
     out[DEPTH] = np.where(miss, 0.0, path_length)
