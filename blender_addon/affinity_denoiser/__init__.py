@@ -1,6 +1,6 @@
 """Affinity Denoiser: Cycles animations denoised from per-sample features, temporally stable.
 
-The native core (the ``affinity`` module) is imported lazily, when a denoise-render starts; a
+The native core (the ``affinity_core`` module) is imported lazily, when a denoise-render starts; a
 missing core is reported there and in the panel, and does not stop the add-on from loading.
 """
 

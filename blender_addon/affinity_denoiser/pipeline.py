@@ -24,11 +24,12 @@ MAX_SAMPLES_PER_FRAME = 8
 
 
 #: Blender versions whose sample subsets were checked to render exactly one sample of the set.
-#: A behaviour check, not an API one: bpy 4.2.23 has ``use_sample_subset`` but ignores
-#: ``sample_subset_length`` (a subset at offset k renders samples k..samples-1, so offset 0 is
-#: the whole render); there ``samples = 1`` with ``sample_offset`` gives one distinct sample per
-#: offset. See docs/BLENDER.md.
-SAMPLE_SUBSETS_VERIFIED_FROM = (5, 0, 0)
+#: A behaviour check, not an API one: bpy 4.2.23 and the Blender 4.3.2 program have
+#: ``use_sample_subset`` but ignore ``sample_subset_length`` (a subset at offset k renders samples
+#: k..samples-1, so offset 0 is the whole render); there ``samples = 1`` with ``sample_offset``
+#: gives one distinct sample per offset. From 4.5 on subsets are exact and that route renders the
+#: same sample at every offset (4.4: not measured). See docs/BLENDER.md, "Blender versions".
+SAMPLE_SUBSETS_VERIFIED_FROM = (4, 5, 0)
 
 
 def uses_sample_subsets(cycles_settings: Any) -> bool:
@@ -257,14 +258,17 @@ class SequenceCapture:
                 samples[:, :, sample] = sample_features
             if sample == 0:  # Cycles writes Z for the sample at offset 0 only
                 geometry = self._geometry(captured, names, camera, transforms)
-            for name, image in captured.items():
-                if name in FIRST_SAMPLE_PASSES:
-                    if sample == 0:
-                        first[name] = image.copy()
-                elif name in sums:
-                    sums[name] += image
-                else:
-                    sums[name] = image.copy()
+            # Blender 5.2 writes float32's largest value where a ray misses (Denoising Depth):
+            # its sum is inf, as it should be, and no error.
+            with np.errstate(over="ignore"):
+                for name, image in captured.items():
+                    if name in FIRST_SAMPLE_PASSES:
+                        if sample == 0:
+                            first[name] = image.copy()
+                    elif name in sums:
+                        sums[name] += image
+                    else:
+                        sums[name] = image.copy()
             yield sample + 1
         assert geometry is not None
         start = time.perf_counter()

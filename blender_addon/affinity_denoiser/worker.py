@@ -135,9 +135,15 @@ def _serve(arguments: dict[str, Any], replies: _Replies) -> None:
 
 def main(arguments: dict[str, Any]) -> None:
     replies = _Replies(arguments["reply_fd"])
+    status = 0
     try:
         _serve(arguments, replies)
     except Exception as exc:  # the boundary: the engine shows the message
         traceback.print_exc()
         replies.send({"error": str(exc) or type(exc).__name__})
-        sys.exit(1)
+        status = 1
+    # Everything is written and sent. bpy 4.5 as a module hangs when Python exits after the
+    # add-on's classes were registered (4.2 crashes): end without Python's exit.
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(status)

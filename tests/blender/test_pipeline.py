@@ -77,7 +77,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 def test_sample_mean_equals_a_full_render(run: dict[str, Any]) -> None:
     if not pipeline.uses_sample_subsets(bpy.context.scene.cycles):
         pytest.skip("one-sample renders reproduce an S-spp render exactly only with sample "
-                    "subsets (bpy >= 5.0 checked; 4.2.23 differs: docs/BLENDER.md)")
+                    "subsets (bpy >= 4.5 checked; 4.2 and 4.3 differ: docs/BLENDER.md)")
     for result in run["job"].results:
         full = run["plain"][result.frame]
         # Sum of per-sample diffuse + specular over the samples = Cycles' 4-spp Combined.

@@ -122,6 +122,7 @@ def test_cycles_panels_are_shown_for_the_engine() -> None:
 
 
 _FARM_SCRIPT = textwrap.dedent("""
+    import os
     import sys
     import bpy
     import affinity_denoiser
@@ -135,7 +136,10 @@ _FARM_SCRIPT = textwrap.dedent("""
     if len(sys.argv) > 3:  # a chunk: the farm's -s / -e
         scene.frame_start, scene.frame_end = int(sys.argv[2]), int(sys.argv[3])
     bpy.ops.render.render(animation=True)
-    print("RENDERED", *rendered)
+    print("RENDERED", *rendered, flush=True)
+    # bpy 4.2 and 4.5 as modules crash or hang when Python exits after a property with a getter
+    # (the settings' last_output_folder) was registered (docs/BLENDER.md, "Blender versions").
+    os._exit(0)
 """)
 
 
