@@ -106,14 +106,16 @@ class RenderJob:
         arguments["reply_fd"] = write_end
         self._replies = os.fdopen(read_end, "rb", buffering=0)
         self._buffer = b""
-        with open(self._log_path, "wb") as log:
-            try:
+        try:
+            with open(self._log_path, "wb") as log:
                 self._process = subprocess.Popen(
                     _command(arguments), stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                     stderr=log, pass_fds=(write_end,), start_new_session=True)
-            finally:
-                os.close(write_end)
-        self.frames_done = 0
+        except OSError as error:  # no such program, no memory: nothing may be left behind
+            self.close()
+            raise WorkerFailed(f"cannot start the render worker: {error}") from error
+        finally:
+            os.close(write_end)
 
     def _log_tail(self, lines: int = 25) -> str:
         try:
@@ -167,7 +169,6 @@ class RenderJob:
                 path = os.path.join(self.folder, file_name)
                 passes[name] = np.load(path)
                 os.unlink(path)
-            self.frames_done += 1
             return passes
 
     def close(self, kill: bool = False) -> None:

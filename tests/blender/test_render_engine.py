@@ -236,3 +236,13 @@ def test_esc_kills_the_worker_and_leaves_nothing(tmp_path: Any) -> None:
         assert not os.path.exists(job.folder)
     finally:
         job.close()
+
+
+def test_a_worker_that_cannot_start_is_an_error_that_leaves_nothing(
+        tmp_path: Any, monkeypatch: pytest.MonkeyPatch) -> None:
+    monkeypatch.setattr(render_job, "_command", lambda arguments: [str(tmp_path / "no-blender")])
+    before = set(glob.glob(os.path.join(tempfile.gettempdir(), "affinity-render-*")))
+    with pytest.raises(render_job.WorkerFailed, match="cannot start the render worker: .*no-blender"):
+        render_job.RenderJob(str(tmp_path / "shot.blend"), "Scene", "ViewLayer",
+                             render_job.JobSettings(pipeline.Settings(), 0))
+    assert set(glob.glob(os.path.join(tempfile.gettempdir(), "affinity-render-*"))) == before
