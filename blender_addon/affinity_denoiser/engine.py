@@ -63,14 +63,22 @@ def write_result(engine: Any, width: int, height: int, frame: dict[str, np.ndarr
     passes ``frame`` lacks are zero."""
     result = engine.begin_result(0, 0, width, height, layer=layer)
     try:
-        for render_pass in result.layers[0].passes:
-            image = frame.get(render_pass.name)
-            channels = render_pass.channels
-            if image is None or image.shape != (height, width, channels):
-                image = np.zeros((height, width, channels), np.float32)
-            render_pass.rect.foreach_set(np.ascontiguousarray(image[::-1], np.float32).ravel())
+        fill_passes(result, frame, width, height)
     finally:
         engine.end_result(result)
+
+
+def fill_passes(result: Any, images: dict[str, np.ndarray], width: int, height: int) -> None:
+    """Sets each pass of ``result``'s first layer to the image of its name (top row first, its
+    first channels), bottom row first as Blender wants; a missing or misfitting one is zero."""
+    for render_pass in result.layers[0].passes:
+        channels = render_pass.channels
+        image = images.get(render_pass.name)
+        if image is not None:
+            image = image[..., :channels]
+        if image is None or image.shape != (height, width, channels):
+            image = np.zeros((height, width, channels), np.float32)
+        render_pass.rect.foreach_set(np.ascontiguousarray(image[::-1], np.float32).ravel())
 
 
 #: What Cycles' engine class holds besides its methods; everything else of it is copied.

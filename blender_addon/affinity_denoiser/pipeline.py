@@ -334,6 +334,15 @@ class SequenceCapture:
 ProgressCallback = Callable[[int, int, str], None]
 
 
+def run_frame(rendering: Generator[int, None, DenoisedFrame]) -> DenoisedFrame:
+    """Runs ``SequenceCapture.frame`` to its end where nothing waits between sub-renders."""
+    while True:
+        try:
+            next(rendering)
+        except StopIteration as finished:
+            return finished.value
+
+
 class DenoiseRender:
     """Renders and denoises ``frames`` of ``scene`` (its ``view_layer`` only)."""
 

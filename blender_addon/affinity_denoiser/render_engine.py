@@ -24,34 +24,38 @@ IDNAME = engine.DENOISING_ENGINE
 _engine_class: type | None = None
 #: The workers of the render job under way, one per (scene, view layer).
 _jobs: dict[tuple[str, str], render_job.RenderJob] = {}
-#: Copies of unsaved or modified files handed to workers, removed with them.
-_copies: list[str] = []
+#: The copy of an unsaved or modified file that the render job's workers open (one for all its
+#: view layers), removed with them: its folder and path.
+_copy: tuple[str, str] | None = None
 
 
 def close_jobs(*_: Any) -> None:
     """Stops every worker (a render job has ended or a new one begins)."""
+    global _copy
     while _jobs:
         _, job = _jobs.popitem()
         job.close()
-    while _copies:
-        shutil.rmtree(_copies.pop(), ignore_errors=True)
+    if _copy is not None:
+        shutil.rmtree(_copy[0], ignore_errors=True)
+        _copy = None
 
 
 def _blend_for_worker() -> str:
     """The .blend a worker opens: the open file when it is saved as it is, else a copy of the
     data as it is now (a render started from a script that changed it)."""
+    global _copy
     import bpy
 
     if bpy.data.filepath and not bpy.data.is_dirty:
         return bpy.data.filepath
-    folder = tempfile.mkdtemp(prefix="affinity-blend-")
-    _copies.append(folder)
-    name = os.path.basename(bpy.data.filepath) or "untitled.blend"
-    path = os.path.join(folder, name)
-    # Every scene with what it uses; relative paths (textures, caches) made absolute, since the
-    # copy lives elsewhere.
-    bpy.data.libraries.write(path, set(bpy.data.scenes), path_remap="ABSOLUTE")
-    return path
+    if _copy is None:
+        folder = tempfile.mkdtemp(prefix="affinity-blend-")
+        path = os.path.join(folder, os.path.basename(bpy.data.filepath) or "untitled.blend")
+        _copy = (folder, path)
+        # Every scene with what it uses; relative paths (textures, caches) made absolute, since
+        # the copy lives elsewhere.
+        bpy.data.libraries.write(path, set(bpy.data.scenes), path_remap="ABSOLUTE")
+    return _copy[1]
 
 
 def _job(scene: Any, view_layer: Any) -> render_job.RenderJob:
@@ -102,12 +106,8 @@ def _render_final(engine_instance: Any, depsgraph: Any) -> None:
         if images is None:  # Esc: the worker is stopped, Blender ends the job
             _jobs.pop((scene.name, view_layer.name), None)
             return
-        for render_pass in result.layers[0].passes:
-            image = images.get(render_pass.name)
-            if image is None:
-                continue
-            image = _crop(image, scene, width, height)[..., :render_pass.channels]
-            render_pass.rect.foreach_set(image[::-1].astype("float32").ravel())
+        engine.fill_passes(result, {name: _crop(image, scene, width, height)
+                                    for name, image in images.items()}, width, height)
         cancelled = False
     finally:
         engine_instance.end_result(result, cancel=cancelled)

@@ -57,12 +57,7 @@ def _render(capture: pipeline.SequenceCapture, frame: int, replies: _Replies,
         replies.send({"progress": (done * spp + sample) / (total * spp),
                       "text": f"{label}, sample {sample + 1}/{spp}"})
 
-    rendering = capture.frame(frame, before_sample)
-    while True:
-        try:
-            next(rendering)
-        except StopIteration as finished:
-            return finished.value
+    return pipeline.run_frame(capture.frame(frame, before_sample))
 
 
 def _save_passes(folder: str, frame: int, denoised: pipeline.DenoisedFrame,
@@ -100,7 +95,9 @@ def _animation_grid(saved_blend: str, scene_name: str) -> tuple[int, int] | None
 def _serve(arguments: dict[str, Any], replies: _Replies) -> None:
     import bpy
 
-    grid = _animation_grid(arguments["saved_blend"], arguments["scene"])
+    # The animation's grid is the saved file's; when that is the file opened below, read there.
+    saved = arguments["saved_blend"]
+    grid = _animation_grid(saved, arguments["scene"]) if saved != arguments["blend"] else None
     bpy.ops.wm.open_mainfile(filepath=arguments["blend"], load_ui=False)
     if not engine.is_registered():  # an extension enabled in this Blender registered it
         engine.register()

@@ -298,13 +298,7 @@ def test_passes_cycles_writes_for_the_first_sample_only_are_that_samples() -> No
     with pipeline.capture_setup(scene, layer, 2):
         capture = pipeline.SequenceCapture(scene, layer, pipeline.Settings(samples_per_frame=2),
                                            pipeline.Timings())
-        rendering = capture.frame(1)
-        while True:
-            try:
-                next(rendering)
-            except StopIteration as finished:
-                denoised = finished.value
-                break
+        denoised = pipeline.run_frame(capture.frame(1))
     hit = denoised.mean[passes.AOV_DISTANCE][..., 0] > 0.0
     depth = denoised.mean["Depth"][..., 0]
     assert hit.mean() > 0.3

@@ -42,8 +42,8 @@ def _frames(folder: Any, pattern: str = "frame_*.png") -> dict[int, np.ndarray]:
 
 def _workers_left() -> list[str]:
     """Render-worker folders that still exist, and workers still held by the engine."""
-    return [job.folder for job in render_engine._jobs.values()] + [
-        folder for folder in render_engine._copies]
+    copy = [render_engine._copy[0]] if render_engine._copy is not None else []
+    return [job.folder for job in render_engine._jobs.values()] + copy
 
 
 @pytest.mark.parametrize(("last", "frame", "start", "step", "warmup", "expected"), [
