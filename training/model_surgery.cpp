@@ -142,4 +142,44 @@ std::vector<NamedTensor> widened(const Weights& trained, const Weights& fresh) {
     return tensors;
 }
 
+std::vector<NamedTensor> withKernelAdded(const Weights& trained, double bandwidthScale) {
+    const ModelConfig before = configFromWeights(trained);
+    if (!(bandwidthScale > 0.0) || !std::isfinite(bandwidthScale))
+        throw Error("add-kernel: the bandwidth scale must be a positive number, not " + std::to_string(bandwidthScale));
+    ModelConfig after = before;
+    after.kernels = before.kernels + 1;
+    validateConfig(after);
+    std::vector<NamedTensor> tensors = copiesOf(trained);
+    auto find = [&](const std::string& name) -> NamedTensor& {
+        return tensorNamed(tensors, name, "add-kernel: " + trained.source());
+    };
+    find("config.kernels").ints = {after.kernels};
+    const int G = before.kernelChannels(), F = before.affinityFeatures;
+    const int lastKernel = (before.kernels - 1) * G, tail = before.kernels * G;
+    // Head output rows of the grown model, each taken from a row of the trained head and scaled.
+    struct Row {
+        int from;
+        float scale;
+    };
+    std::vector<Row> rows;
+    for (int r = 0; r < tail; ++r) rows.push_back({r, 1.0f});
+    for (int f = 0; f < F; ++f) rows.push_back({lastKernel + f, 1.0f});
+    rows.push_back({lastKernel + F, float(bandwidthScale)});
+    rows.push_back({lastKernel + F + 1, 1.0f});
+    rows.push_back({tail, 1.0f});      // temporal bandwidth
+    rows.push_back({tail + 1, 1.0f});  // lambda
+    for (const char* part : {".weight", ".bias"}) {
+        NamedTensor& head = find(std::string("unet.head") + part);
+        const std::size_t perRow = head.floats.size() / std::size_t(before.headChannels());
+        std::vector<float> grown;
+        grown.reserve(rows.size() * perRow);
+        for (const Row& row : rows)
+            for (std::size_t i = 0; i < perRow; ++i)
+                grown.push_back(head.floats[std::size_t(row.from) * perRow + i] * row.scale);
+        head.floats = std::move(grown);
+        head.shape[0] = after.headChannels();
+    }
+    return tensors;
+}
+
 }  // namespace affinity::train

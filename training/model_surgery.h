@@ -17,4 +17,14 @@ namespace affinity::train {
 // stands. Throws affinity::Error naming what differs when the two do not fit.
 std::vector<NamedTensor> widened(const Weights& trained, const Weights& fresh);
 
+// The trained model with one more dilated kernel: K + 1 kernels, the new one last (dilation 2^K,
+// so the footprint doubles) and the one with the temporal taps. Not the same function: the
+// history then joins after the wide pass instead of the old last one. The head's new outputs
+// start as copies of the old last kernel's (features, bandwidth, centre weight), the bandwidth
+// multiplied by `bandwidthScale` (> 1: the wide pass starts as a stricter, more edge-keeping
+// filter). The temporal taps compare the new last kernel's features, which start equal to the
+// old ones, so the history's weights start where they were. Throws affinity::Error for a scale
+// that is not positive or a model that already has the most kernels a file may hold.
+std::vector<NamedTensor> withKernelAdded(const Weights& trained, double bandwidthScale);
+
 }  // namespace affinity::train

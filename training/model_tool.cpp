@@ -23,7 +23,9 @@ constexpr const char* kUsage =
     "usage: affinity_model_tool init --preset NAME --seed N --out FILE.affw\n"
     "       affinity_model_tool describe FILE.affw\n"
     "       affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw   (same function, the preset's wider\n"
-    "           layers; the new channels' incoming weights initialised with seed N)\n";
+    "           layers; the new channels' incoming weights initialised with seed N)\n"
+    "       affinity_model_tool add-kernel [--bandwidth-scale S] IN.affw OUT.affw   (one more dilated kernel,\n"
+    "           the last and widest; it starts as a copy of the old last one, bandwidth x S, default 2)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -134,6 +136,33 @@ int runWiden(const std::vector<std::string>& args) {
     return 0;
 }
 
+int runAddKernel(const std::vector<std::string>& args) {
+    double scale = 2.0;
+    std::vector<std::string> files;
+    for (std::size_t i = 0; i < args.size(); ++i) {
+        if (args[i] == "--bandwidth-scale") {
+            if (i + 1 >= args.size()) throw Error("add-kernel: --bandwidth-scale needs a value");
+            const std::string& value = args[++i];
+            std::size_t used = 0;
+            try {
+                scale = std::stod(value, &used);
+            } catch (const std::exception&) {
+                used = 0;
+            }
+            if (used != value.size() || value.empty())
+                throw Error("add-kernel: --bandwidth-scale '" + value + "' is not a number");
+        } else {
+            files.push_back(args[i]);
+        }
+    }
+    if (files.size() != 2) throw Error("add-kernel: expected [--bandwidth-scale S] IN.affw OUT.affw");
+    if (files[0] == files[1]) throw Error("add-kernel: the output must not overwrite the input");
+    writeWeightsFile(files[1], withKernelAdded(Weights::fromFile(files[0]), scale));
+    std::cout << "wrote " << files[1] << ": " << files[0] << " with one more kernel (bandwidth scale " << scale
+              << ")\n";
+    return 0;
+}
+
 }  // namespace
 }  // namespace affinity::train
 
@@ -148,6 +177,7 @@ int main(int argc, char** argv) {
         if (args[0] == "init") return affinity::train::runInit(rest);
         if (args[0] == "describe") return affinity::train::runDescribe(rest);
         if (args[0] == "widen") return affinity::train::runWiden(rest);
+        if (args[0] == "add-kernel") return affinity::train::runAddKernel(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

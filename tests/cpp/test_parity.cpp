@@ -127,6 +127,31 @@ TEST(Parity, WideningATrainedModelKeepsTheFunction) {
     for (const std::string& path : {fresh, wide, tiny}) std::filesystem::remove(path);
 }
 
+// The shipped default with a fourth, wider kernel: both sides agree on it; on a first frame (no
+// temporal taps) with the new kernel's bandwidth scaled far up, its neighbours weigh nothing and
+// the output is the three-kernel model's.
+TEST(Parity, AddingAKernelToATrainedModel) {
+    const std::string original = std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw";
+    const std::string grown = temporaryPath("default_k4.affw"), strict = temporaryPath("default_k4_strict.affw");
+    const Weights trained = Weights::fromFile(original);
+    train::writeWeightsFile(grown, train::withKernelAdded(trained, 2.0));
+    train::writeWeightsFile(strict, train::withKernelAdded(trained, 1e4));
+    EXPECT_EQ(train::configFromWeights(Weights::fromFile(grown)).kernels, 4);
+    EXPECT_EQ(Weights::fromFile(grown).tensor("unet.head.bias").count, 42u);  // 4 x (8 + 2) + 2
+    const std::vector<SampleFrame> frames = test::randomSequence(3, 41, 35, 4, 23);
+    expectParity(grown, frames);
+
+    Denoiser before(Model::fromFile(original, Precision::Float32)), after(Model::fromFile(strict, Precision::Float32));
+    const std::vector<float> threeKernels = before.denoise(frames[0]), fourKernels = after.denoise(frames[0]);
+    EXPECT_LT(maxRelativeDifference(fourKernels, threeKernels), 1e-3);
+    Denoiser loose(Model::fromFile(grown, Precision::Float32));
+    EXPECT_GT(maxRelativeDifference(loose.denoise(frames[0]), threeKernels), 1e-2);  // the wide pass filters
+
+    EXPECT_THROW(train::withKernelAdded(trained, 0.0), Error);
+    EXPECT_THROW(train::withKernelAdded(trained, -1.0), Error);
+    for (const std::string& path : {grown, strict}) std::filesystem::remove(path);
+}
+
 TEST(Parity, EveryPresetAtInitialisation) {
     for (const std::string& preset : train::presetNames()) {
         const std::string path = temporaryPath(preset + ".affw");
