@@ -95,6 +95,11 @@ class Settings:
             keep_sample_frames=props.keep_sample_frames,
         )
 
+    def check(self) -> None:
+        """Raises ValueError naming a setting the capture cannot run with."""
+        if not 1 <= self.samples_per_frame <= MAX_SAMPLES_PER_FRAME:
+            raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
+
 
 @dataclass
 class DenoisedFrame:
@@ -188,8 +193,7 @@ class SequenceCapture:
                  keep_frames: bool = False) -> None:
         import bpy
 
-        if not 1 <= settings.samples_per_frame <= MAX_SAMPLES_PER_FRAME:
-            raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
+        settings.check()
         self.scene = scene
         self.view_layer = view_layer
         self.settings = settings
@@ -356,8 +360,7 @@ class DenoiseRender:
     ) -> None:
         if not frames:
             raise ValueError("no frames to render")
-        if not 1 <= settings.samples_per_frame <= MAX_SAMPLES_PER_FRAME:
-            raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
+        settings.check()
         self.scene = scene
         self.view_layer = view_layer
         self.frames = list(frames)

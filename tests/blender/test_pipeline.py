@@ -305,3 +305,13 @@ def test_passes_cycles_writes_for_the_first_sample_only_are_that_samples() -> No
     # Metres from the camera, or no hit at sample 0 (edge pixels): never a mix of the two.
     assert np.all((depth < 100.0) | (depth == np.float32(1e10)))
     assert np.mean(depth[hit] < 100.0) > 0.9
+
+
+@pytest.mark.parametrize("samples", [0, pipeline.MAX_SAMPLES_PER_FRAME + 1])
+def test_a_sample_count_out_of_range_is_refused_by_both_capture_routes(samples: int) -> None:
+    scene, layer = bpy.context.scene, bpy.context.scene.view_layers[0]
+    settings = pipeline.Settings(samples_per_frame=samples)
+    with pytest.raises(ValueError, match=f"samples per frame must be 1 to {pipeline.MAX_SAMPLES_PER_FRAME}"):
+        pipeline.DenoiseRender(scene, layer, [1], settings)
+    with pytest.raises(ValueError, match=f"samples per frame must be 1 to {pipeline.MAX_SAMPLES_PER_FRAME}"):
+        pipeline.SequenceCapture(scene, layer, settings, pipeline.Timings())
