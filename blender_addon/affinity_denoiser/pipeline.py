@@ -21,6 +21,12 @@ from . import backend, compositor, engine, features, materials, motion, output, 
 from .overrides import Overrides
 
 MAX_SAMPLES_PER_FRAME = 8
+#: A sequence's first frame has no history, so a temporal denoiser does worst there. Before it,
+#: the capture renders that frame this many more times with other samples and denoises them as
+#: frames of a still camera: the first frame then starts with a history. Costs this many frames'
+#: sub-renders once per sequence (docs/BLENDER.md, "Pre-roll").
+DEFAULT_PREROLL_FRAMES = 2
+MAX_PREROLL_FRAMES = 8
 
 
 #: Blender versions whose sample subsets were checked to render exactly one sample of the set.
@@ -83,6 +89,7 @@ class Settings:
     temporal: bool = True
     output_folder: str = ""
     keep_sample_frames: bool = False
+    preroll_frames: int = DEFAULT_PREROLL_FRAMES
 
     @classmethod
     def from_properties(cls, props: Any) -> Settings:
@@ -93,12 +100,15 @@ class Settings:
             temporal=props.temporal,
             output_folder=props.output_folder,
             keep_sample_frames=props.keep_sample_frames,
+            preroll_frames=props.preroll_frames,
         )
 
     def check(self) -> None:
         """Raises ValueError naming a setting the capture cannot run with."""
         if not 1 <= self.samples_per_frame <= MAX_SAMPLES_PER_FRAME:
             raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
+        if not 0 <= self.preroll_frames <= MAX_PREROLL_FRAMES:
+            raise ValueError(f"pre-roll frames must be 0 to {MAX_PREROLL_FRAMES}")
 
 
 @dataclass
@@ -234,6 +244,9 @@ class SequenceCapture:
         stream = hasattr(denoiser, "add_samples") and not self.keep_frames
         if stream and denoiser.pending_samples:
             denoiser.discard_samples()  # left by an interrupted frame
+        prerolled = self.settings.temporal and self.last_frame is None and self.settings.preroll_frames > 0
+        if prerolled:
+            yield from self._preroll(frame, camera, ray_start, stream, before_sample)
         samples = None if stream else np.empty(
             (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
         radiance = np.zeros((camera.height, camera.width, 3), np.float32)
@@ -277,6 +290,8 @@ class SequenceCapture:
         assert geometry is not None
         start = time.perf_counter()
         motion_vectors, valid = motion.scene_motion(geometry, self._previous)
+        if prerolled:  # the frame before was this one (the pre-roll), from the same camera
+            motion_vectors, valid = np.zeros_like(motion_vectors), np.ones_like(valid)
         self.timings.motion.append(time.perf_counter() - start)
         self._previous = geometry
         frame_data = features.frame_dict(samples, motion_vectors, valid, camera,
@@ -303,6 +318,56 @@ class SequenceCapture:
         rgba = np.concatenate([denoised, alpha], axis=-1)
         return DenoisedFrame(frame, rgba, noisy, mean, frame_data,
                              dict(getattr(denoiser, "last_report", {})))
+
+    def _preroll(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
+                 before_sample: Callable[[int], None] | None) -> Generator[int, None, None]:
+        """Renders ``frame`` preroll_frames more times, with the sample offsets after its own S,
+        and denoises each as a frame of a still camera, the output unused: the frame proper then
+        starts with a history (DEFAULT_PREROLL_FRAMES). Yields 0 after each sub-render (none of
+        the frame's own samples is done yet)."""
+        cycles = self.scene.cycles
+        if uses_sample_subsets(cycles):  # the set must hold the offsets; the frame's own stay S
+            saved = cycles.samples
+            cycles.samples = (self.settings.preroll_frames + 1) * self.settings.samples_per_frame
+            try:
+                yield from self._preroll_frames(frame, camera, ray_start, stream, before_sample)
+            finally:
+                cycles.samples = saved
+        else:
+            yield from self._preroll_frames(frame, camera, ray_start, stream, before_sample)
+
+    def _preroll_frames(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
+                        before_sample: Callable[[int], None] | None) -> Generator[int, None, None]:
+        spp, denoiser = self.settings.samples_per_frame, self.denoiser
+        still = np.zeros((camera.height, camera.width, 2), np.float32)
+        for group in range(1, self.settings.preroll_frames + 1):
+            samples = None if stream else np.empty(
+                (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
+            for sample in range(spp):
+                if before_sample is not None:
+                    before_sample(0)
+                captured = self._sub_render(group * spp + sample)
+                start = time.perf_counter()
+                if self._names is None:
+                    self._names = passes.resolve(captured)
+                sample_features = features.sample_features(
+                    passes.by_role(captured, self._names), camera, ray_start)
+                self.timings.features.append(time.perf_counter() - start)
+                if samples is None:
+                    denoiser.add_samples(sample_features)
+                else:
+                    samples[:, :, sample] = sample_features
+                yield 0
+            # The first pre-roll frame starts the history; each later one follows the one before.
+            valid = np.full((camera.height, camera.width), 1.0 if group > 1 else 0.0, np.float32)
+            frame_data = features.frame_dict(samples, still, valid, camera, self.scene.name, frame,
+                                             self.scene.cycles.seed)
+            start = time.perf_counter()
+            if frame_data["samples"] is None:
+                denoiser.finish_frame({key: value for key, value in frame_data.items() if key != "samples"})
+            else:
+                denoiser.denoise(frame_data)
+            self.timings.denoise.append(time.perf_counter() - start)
 
     @staticmethod
     def _geometry(captured: dict[str, np.ndarray], names: dict[str, str], camera: motion.Camera,

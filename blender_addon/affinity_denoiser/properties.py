@@ -12,7 +12,7 @@ from typing import Any
 
 import bpy
 
-from .pipeline import MAX_SAMPLES_PER_FRAME
+from .pipeline import DEFAULT_PREROLL_FRAMES, MAX_PREROLL_FRAMES, MAX_SAMPLES_PER_FRAME
 
 #: Where ``last_output_folder``'s value is kept (an ID property of the settings, saved with the
 #: .blend); the property itself has a getter only, so that scripts cannot set it.
@@ -70,6 +70,15 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
         default=8,
         min=0,
         max=64,
+    )
+    preroll_frames: bpy.props.IntProperty(
+        name="Pre-roll Frames",
+        description="The first frame of a sequence has no history: before it, render it this "
+        "many more times with other samples, not saved, so that it starts with one. Costs "
+        "this many frames' render time once per sequence",
+        default=DEFAULT_PREROLL_FRAMES,
+        min=0,
+        max=MAX_PREROLL_FRAMES,
     )
     output_folder: bpy.props.StringProperty(
         name="Output Folder",

@@ -86,7 +86,7 @@ def _assert_restored(scene: Any, materials_before: Any) -> None:
 def test_cancel_leaves_no_partial_file_and_restores_everything(tmp_path: Any) -> None:
     scene = _scene(tmp_path)
     before = material_snapshot()
-    job = _job(scene, [1, 2])
+    job = _job(scene, [1, 2], preroll_frames=0)
     steps = job.steps()
     for _ in range(3):  # frame 1 (2 sub-renders, then written), one sub-render of frame 2
         next(steps)
@@ -114,12 +114,26 @@ def test_an_error_restores_everything_and_leaves_finished_frames(tmp_path: Any) 
     backend.set_denoiser_factory(_FailingDenoiser)
     try:
         with pytest.raises(RuntimeError, match="on purpose"):
-            _job(scene, [1, 2]).run()
+            _job(scene, [1, 2], preroll_frames=0).run()
     finally:
         backend.set_denoiser_factory(previous)
     assert sorted(_files(tmp_path / "render")) == [
         "affinity_denoised/denoised_0001.exr", "affinity_denoised/final_0001.png"]
     _assert_restored(scene, before)
+
+
+def test_cancel_during_the_preroll_leaves_nothing_and_restores_everything(tmp_path: Any) -> None:
+    scene = _scene(tmp_path)
+    before = material_snapshot()
+    samples_before = scene.cycles.samples
+    job = _job(scene, [1, 2], preroll_frames=2)
+    steps = job.steps()
+    for _ in range(3):  # the first pre-roll frame and one sub-render of the second
+        assert next(steps) == 0
+    steps.close()
+    assert not _files(tmp_path / "render")
+    _assert_restored(scene, before)
+    assert scene.cycles.samples == samples_before
 
 
 def test_atomic_write_removes_a_partial_file(tmp_path: Any) -> None:

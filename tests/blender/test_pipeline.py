@@ -50,7 +50,8 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
     scene.frame_set(2)
     before = {"materials": material_snapshot(), "settings": _scene_settings(scene)}
 
-    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings())
+    # No pre-roll: the tests below rebuild the core's input from the kept frames alone.
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings(preroll_frames=0))
     job.keep_frames = True
     job.run()
     after = {"materials": material_snapshot(), "settings": _scene_settings(scene)}
@@ -244,7 +245,7 @@ def test_streamed_samples_give_what_the_core_gives_on_the_kept_frames(run: dict[
 
     scene = bpy.context.scene
     scene.render.filepath = str(tmp_path / "render" / "frame_")
-    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings())
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings(preroll_frames=0))
     job.run()
     by_hand = affinity_core.Denoiser()
     for kept, streamed in zip(run["job"].results, job.results, strict=True):
@@ -280,7 +281,7 @@ def test_precision_auto_uses_bfloat16_only_where_the_cpu_has_it(run: dict[str, A
 
     scene = bpy.context.scene
     scene.render.filepath = str(tmp_path / "render" / "frame_")
-    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings(precision="fp32"))
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings(precision="fp32", preroll_frames=0))
     job.keep_frames = True  # as the fixture's job: whole frames, the same depth normalisation
     job.run()
     for automatic, fp32 in zip(run["job"].results, job.results, strict=True):
@@ -315,3 +316,49 @@ def test_a_sample_count_out_of_range_is_refused_by_both_capture_routes(samples: 
         pipeline.DenoiseRender(scene, layer, [1], settings)
     with pytest.raises(ValueError, match=f"samples per frame must be 1 to {pipeline.MAX_SAMPLES_PER_FRAME}"):
         pipeline.SequenceCapture(scene, layer, settings, pipeline.Timings())
+
+
+def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path: Any) -> None:
+    """Pre-roll P: the first frame is rendered P more times with the sample offsets after its
+    own and denoised as a still camera before the frame proper, which then has a history: its
+    own samples are unchanged, it is closer to the reference, and the history carries on."""
+    from conftest import CORE_AVAILABLE
+    if not CORE_AVAILABLE:
+        pytest.skip("the affinity core is not importable")
+    scene = scenes.build_scene()
+    scene.frame_set(1)
+
+    def high_spp(s: Any) -> None:
+        s.cycles.samples = REFERENCE_SPP
+        s.cycles.seed = 1  # independent of the samples being judged
+
+    reference = capture(scene, high_spp)["Combined"][..., :3]
+    scene.cycles.samples, scene.cycles.seed = scenes.SPP, 0
+    spp = scenes.SPP
+    jobs = {}
+    for preroll in (0, 2):
+        scene.render.filepath = str(tmp_path / f"preroll{preroll}" / "frame_")
+        job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2],
+                                     pipeline.Settings(samples_per_frame=spp, preroll_frames=preroll))
+        job.keep_frames = True
+        job.run()
+        jobs[preroll] = job
+    plain, prerolled = jobs[0], jobs[2]
+    assert len(plain.timings.sub_renders) == 2 * spp
+    assert len(prerolled.timings.sub_renders) == 2 * spp + 2 * spp
+    first, first_plain = prerolled.results[0], plain.results[0]
+    np.testing.assert_array_equal(first.frame_data["samples"], first_plain.frame_data["samples"])
+    assert not first_plain.frame_data["valid"].any()
+    assert first.frame_data["valid"].all() and not first.frame_data["motion"].any()
+    error, error_plain = _relative_mse(first.denoised, reference), _relative_mse(first_plain.denoised, reference)
+    print(f"frame 1: relMSE against {REFERENCE_SPP} spp: pre-roll 2 {error:.5f}, none {error_plain:.5f}")
+    assert error < 0.9 * error_plain
+    np.testing.assert_array_equal(prerolled.results[1].frame_data["samples"], plain.results[1].frame_data["samples"])
+    assert np.abs(prerolled.results[1].denoised - plain.results[1].denoised).mean() > 1e-4
+
+
+def test_a_preroll_out_of_range_is_refused() -> None:
+    with pytest.raises(ValueError, match=f"pre-roll frames must be 0 to {pipeline.MAX_PREROLL_FRAMES}"):
+        pipeline.Settings(preroll_frames=pipeline.MAX_PREROLL_FRAMES + 1).check()
+    with pytest.raises(ValueError, match="pre-roll frames must be 0 to"):
+        pipeline.Settings(preroll_frames=-1).check()

@@ -95,7 +95,8 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
     start = time.perf_counter()
     run = pipeline.DenoiseRender(
         scene, scene.view_layers[0], frames,
-        pipeline.Settings(samples_per_frame=settings.spp, output_folder=scratch),
+        # No pre-roll: a frame file holds its own samples only, so the first one has no history.
+        pipeline.Settings(samples_per_frame=settings.spp, output_folder=scratch, preroll_frames=0),
         progress=lambda done, total, text: progress(f"input {text}"))
     run.keep_frames = True
     results = run.run()
