@@ -281,7 +281,8 @@ def test_precision_auto_uses_bfloat16_only_where_the_cpu_has_it(run: dict[str, A
 
     scene = bpy.context.scene
     scene.render.filepath = str(tmp_path / "render" / "frame_")
-    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings(precision="fp32", preroll_frames=0))
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
+                                 pipeline.Settings(precision="fp32", preroll_frames=0))
     job.keep_frames = True  # as the fixture's job: whole frames, the same depth normalisation
     job.run()
     for automatic, fp32 in zip(run["job"].results, job.results, strict=True):
