@@ -144,3 +144,9 @@ def with_spp(frame: dict[str, Any], spp: int) -> dict[str, Any]:
     return {"samples": np.ascontiguousarray(frame["samples"][:, :, :spp]), "motion": frame["motion"],
             "valid": frame["valid"], "reference": None, "info": frame["info"]}
 
+
+def spare_samples(frame: dict[str, Any], spp: int) -> np.ndarray:
+    """The frame's samples after its first `spp` ([H, W, rest, 18]): other samples of the same
+    frame, for a pre-roll (methods.py)."""
+    return frame["samples"][:, :, spp:]
+

@@ -11,8 +11,8 @@ import numpy as np
 
 from affinity_core import metrics
 
-from .data import with_spp
-from .methods import Method
+from .data import spare_samples, with_spp
+from .methods import Method, PrerollRunner
 
 #: Metrics of a frame against the frame before: NaN on the first frame, left out of the means.
 PAIR_METRICS = ("temporal_error", "temporal_error_tonemapped", "warping_error")
@@ -66,29 +66,34 @@ class SequenceResult:
         return metrics.ms_per_megapixel(self.seconds_per_frame, self.width, self.height)
 
 
-def run_once(method: Method, inputs: list[dict[str, Any]]) -> tuple[list[np.ndarray], list[float]]:
-    """The sequence in order through a fresh runner: the outputs and the wall time of each call."""
+def run_once(method: Method, inputs: list[dict[str, Any]],
+             spare: np.ndarray | None = None) -> tuple[list[np.ndarray], list[float]]:
+    """The sequence in order through a fresh runner: the outputs and the wall time of each call.
+    A runner with a pre-roll (methods.PrerollRunner) gets the first frame's spare samples
+    first, timed with the first frame."""
     runner = method.start()
     outputs, seconds = [], []
-    for frame in inputs:
+    for t, frame in enumerate(inputs):
         start = time.perf_counter()
+        if t == 0 and spare is not None and isinstance(runner, PrerollRunner):
+            runner.preroll(frame, spare)
         output = runner(frame)
         seconds.append(time.perf_counter() - start)
         outputs.append(np.asarray(output, np.float32))
     return outputs, seconds
 
 
-def run_methods(methods: list[Method], inputs: list[dict[str, Any]],
-                runs: int) -> dict[str, tuple[list[np.ndarray], list[float]]]:
+def run_methods(methods: list[Method], inputs: list[dict[str, Any]], runs: int,
+                spare: np.ndarray | None = None) -> dict[str, tuple[list[np.ndarray], list[float]]]:
     """Each method's outputs (of its first run) and, per frame, its fastest call over `runs`
     runs. The runs go round-robin over the methods, so a burst of other work on a shared
     machine slows at most one run of a method rather than all of them; the methods are
     deterministic, so only the timings differ between runs."""
-    results = {m.label: run_once(m, inputs) for m in methods}
+    results = {m.label: run_once(m, inputs, spare) for m in methods}
     for _ in range(runs - 1):
         for method in methods:
             outputs, fastest = results[method.label]
-            _, seconds = run_once(method, inputs)
+            _, seconds = run_once(method, inputs, spare)
             results[method.label] = (outputs, [min(a, b) for a, b in zip(fastest, seconds)])
     return results
 
@@ -135,7 +140,7 @@ def evaluate_sequence(name: str, failure_case: bool, frames: list[dict[str, Any]
     for count in sorted(set(spp) | set(equal_time_spp)):
         inputs = [with_spp(frame, count) for frame in frames]
         active = [m for m in methods if count in spp or m.label in EQUAL_TIME_METHODS]
-        runs = run_methods(active, inputs, timing_runs)
+        runs = run_methods(active, inputs, timing_runs, spare_samples(frames[0], count))
         for method in active:
             outputs, seconds = runs[method.label]
             result = SequenceResult(method.label, method.family, name, failure_case, count, width, height,

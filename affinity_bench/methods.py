@@ -79,6 +79,37 @@ def _ours(model: affinity_core.Model, ablation: str | None = None) -> Callable[[
     return start
 
 
+#: Pre-roll frames of the `+preroll` method, as the Blender extension's default
+#: (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_FRAMES).
+PREROLL_FRAMES = 2
+
+
+class PrerollRunner:
+    """The extension's pre-roll: before the first frame, `preroll` denoises that frame's spare
+    samples, in groups of S, as frames of a still camera (output unused), so the first frame
+    starts with a history; at most PREROLL_FRAMES groups, fewer where the data holds fewer."""
+
+    def __init__(self, model: affinity_core.Model) -> None:
+        self.denoiser = affinity_core.Denoiser(model)
+        self.prerolled = False
+
+    def preroll(self, first: dict[str, Any], spare: np.ndarray) -> None:
+        spp = first["samples"].shape[2]
+        groups = min(PREROLL_FRAMES, spare.shape[2] // spp)
+        still = np.zeros_like(first["motion"])
+        for group in range(groups):
+            samples = np.ascontiguousarray(spare[:, :, group * spp:(group + 1) * spp])
+            valid = np.full_like(first["valid"], 1.0 if group > 0 else 0.0)
+            self.denoiser.denoise(dict(first, samples=samples, motion=still, valid=valid))
+        self.prerolled = groups > 0
+
+    def __call__(self, frame: dict[str, Any]) -> np.ndarray:
+        if self.prerolled:  # the frame before was this one, from the same camera
+            self.prerolled = False
+            frame = dict(frame, motion=np.zeros_like(frame["motion"]), valid=np.ones_like(frame["valid"]))
+        return self.denoiser.denoise(frame)
+
+
 def load_model(path: str) -> affinity_core.Model:
     """PATH, or PATH:bf16 for the model with bfloat16 products (affinity/precision.h)."""
     precision = "fp32"
@@ -101,7 +132,12 @@ def make_methods(models: list[tuple[str, str]]) -> list[Method]:
     for label, path, model in loaded:
         methods.append(Method(f"ours-{label}", "ours", f"affinity_core.Denoiser, model {label} ({path})", _ours(model)))
     if loaded:
-        label, _, model = loaded[0]
+        label, path, model = loaded[0]
+        methods.append(Method(f"ours-{label}+preroll", "ours",
+                              f"model {label} with the Blender extension's pre-roll: before the first frame, "
+                              f"up to {PREROLL_FRAMES} groups of its spare samples denoised as a still camera "
+                              "(2 at 2 spp, 1 at 4, none at 8 with 8-sample data; costs that many frames' "
+                              "samples once per sequence)", lambda: PrerollRunner(model)))
         for ablation in ABLATIONS:
             methods.append(Method(f"{label}-{ablation}", "ablation",
                                   f"model {label} with ablation={ablation!r}", _ours(model, ablation)))

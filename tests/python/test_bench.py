@@ -45,7 +45,7 @@ def test_every_method_ran_and_every_metric_is_finite(bench: tuple[pathlib.Path, 
     out, _, _ = bench
     rows = read_rows(out / "results.csv")
     methods = {row["method"] for row in rows}
-    expected = {"noisy", "oidn", "svgf", "ours-small", "ours-tiny", "small-single_frame",
+    expected = {"noisy", "oidn", "svgf", "ours-small", "ours-small+preroll", "ours-tiny", "small-single_frame",
                 "small-no_temporal_kernel", "small-one_kernel"}
     # The ladder's other rungs run by default wherever their weights are in the checkout.
     models = pathlib.Path(__file__).resolve().parents[2] / "core" / "models"
@@ -196,3 +196,31 @@ def test_the_cycles_suite_scores_blender_s_denoiser_beside_ours(tmp_path: pathli
         assert 0.5 < brightness < 1.5
     noise = read_rows(out / "reference_noise.csv")
     assert [row["sequence"] for row in noise] == ["cycles_09000"] and float(noise[0]["smape"]) > 0
+
+
+def test_the_preroll_gives_the_first_frame_a_history_from_its_spare_samples() -> None:
+    """methods.PrerollRunner, as the Blender extension's pre-roll: with no spare samples it is
+    the plain denoiser; with the tiny Cycles sequence's spare samples (4 rendered, 2 judged) the
+    first frame starts with a history and comes out closer to the reference."""
+    from affinity_bench import methods
+
+    frames = [affinity_core.read_frame(p) for p in affinity_core.list_frame_files(CYCLES_DATA / "val" / "cycles_09000")]
+    inputs = [data.with_spp(f, 2) for f in frames]
+    model = affinity_core.Model.built_in()
+
+    def run(spare: np.ndarray | None) -> list[np.ndarray]:
+        runner = methods.PrerollRunner(model)
+        if spare is not None:
+            runner.preroll(inputs[0], spare)
+        return [runner(f) for f in inputs]
+
+    plain = [affinity_core.Denoiser(model).denoise(f) for f in inputs[:1]]
+    none = run(data.spare_samples(frames[0], 4))  # no sample left after 4
+    np.testing.assert_array_equal(none[0], plain[0])
+    prerolled, without = run(data.spare_samples(frames[0], 2)), run(None)
+    np.testing.assert_array_equal(without[0], plain[0])
+    error = affinity_core.metrics.smape(prerolled[0], frames[0]["reference"])
+    error_without = affinity_core.metrics.smape(without[0], frames[0]["reference"])
+    print(f"first frame SMAPE at 2 spp: pre-roll {error:.4f}, none {error_without:.4f}")
+    assert error < error_without
+    assert np.abs(prerolled[1] - without[1]).mean() > 0
