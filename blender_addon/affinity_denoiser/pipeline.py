@@ -27,6 +27,8 @@ MAX_SAMPLES_PER_FRAME = 8
 #: sub-renders once per sequence (docs/BLENDER.md, "Pre-roll").
 DEFAULT_PREROLL_FRAMES = 2
 MAX_PREROLL_FRAMES = 8
+#: Added to the scene's seed (times the pre-roll frame's number) for the pre-roll's renders.
+PREROLL_SEED_STEP = 7_919_111
 
 
 #: Blender versions whose sample subsets were checked to render exactly one sample of the set.
@@ -155,7 +157,7 @@ def _activate_view_layer(overrides: Overrides, view_layer: Any) -> None:
 
 
 @contextmanager
-def capture_setup(scene: Any, view_layer: Any, samples_per_frame: int) -> Iterator[bool]:
+def capture_setup(scene: Any, view_layer: Any, settings: Settings) -> Iterator[bool]:
     """Sets ``scene`` up for one-sample sub-renders of ``view_layer`` through the capture
     engine and yields the user's ``use_compositing``; every change is undone on leaving, also
     on error or cancel, and the current frame is put back."""
@@ -177,7 +179,7 @@ def capture_setup(scene: Any, view_layer: Any, samples_per_frame: int) -> Iterat
             overrides.set(cycles, "use_denoising", False)
             overrides.set(cycles, "use_adaptive_sampling", False)
             if uses_sample_subsets(cycles):  # samples = the whole set, one of them per render
-                overrides.set(cycles, "samples", samples_per_frame)
+                overrides.set(cycles, "samples", settings.samples_per_frame)
                 overrides.set(cycles, "use_sample_subset", True)
                 overrides.set(cycles, "sample_subset_length", 1)
             else:  # render 1 sample starting at sample_offset
@@ -321,53 +323,52 @@ class SequenceCapture:
 
     def _preroll(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
                  before_sample: Callable[[int], None] | None) -> Generator[int, None, None]:
-        """Renders ``frame`` preroll_frames more times, with the sample offsets after its own S,
-        and denoises each as a frame of a still camera, the output unused: the frame proper then
-        starts with a history (DEFAULT_PREROLL_FRAMES). Yields 0 after each sub-render (none of
-        the frame's own samples is done yet)."""
+        """Renders ``frame`` preroll_frames more times, each with another seed (independent
+        samples), and denoises each as a frame of a still camera, the output unused: the frame
+        proper then starts with a history (DEFAULT_PREROLL_FRAMES). Yields 0 after each
+        sub-render (none of the frame's own samples is done yet). Another seed, not sample
+        offsets past S: a larger sample set changes which samples the first S are, and on
+        Blender 5.3 made them far noisier (docs/BLENDER.md, "Pre-roll")."""
         cycles = self.scene.cycles
-        if uses_sample_subsets(cycles):  # the set must hold the offsets; the frame's own stay S
-            saved = cycles.samples
-            cycles.samples = (self.settings.preroll_frames + 1) * self.settings.samples_per_frame
-            try:
-                yield from self._preroll_frames(frame, camera, ray_start, stream, before_sample)
-            finally:
-                cycles.samples = saved
-        else:
-            yield from self._preroll_frames(frame, camera, ray_start, stream, before_sample)
+        seed = cycles.seed
+        try:
+            for group in range(1, self.settings.preroll_frames + 1):
+                cycles.seed = (seed + PREROLL_SEED_STEP * group) % 2**31
+                yield from self._preroll_frame(frame, camera, ray_start, stream, before_sample, group)
+        finally:
+            cycles.seed = seed
 
-    def _preroll_frames(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
-                        before_sample: Callable[[int], None] | None) -> Generator[int, None, None]:
+    def _preroll_frame(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
+                       before_sample: Callable[[int], None] | None, group: int) -> Generator[int, None, None]:
         spp, denoiser = self.settings.samples_per_frame, self.denoiser
         still = np.zeros((camera.height, camera.width, 2), np.float32)
-        for group in range(1, self.settings.preroll_frames + 1):
-            samples = None if stream else np.empty(
-                (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
-            for sample in range(spp):
-                if before_sample is not None:
-                    before_sample(0)
-                captured = self._sub_render(group * spp + sample)
-                start = time.perf_counter()
-                if self._names is None:
-                    self._names = passes.resolve(captured)
-                sample_features = features.sample_features(
-                    passes.by_role(captured, self._names), camera, ray_start)
-                self.timings.features.append(time.perf_counter() - start)
-                if samples is None:
-                    denoiser.add_samples(sample_features)
-                else:
-                    samples[:, :, sample] = sample_features
-                yield 0
-            # The first pre-roll frame starts the history; each later one follows the one before.
-            valid = np.full((camera.height, camera.width), 1.0 if group > 1 else 0.0, np.float32)
-            frame_data = features.frame_dict(samples, still, valid, camera, self.scene.name, frame,
-                                             self.scene.cycles.seed)
+        samples = None if stream else np.empty(
+            (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
+        for sample in range(spp):
+            if before_sample is not None:
+                before_sample(0)
+            captured = self._sub_render(sample)
             start = time.perf_counter()
-            if frame_data["samples"] is None:
-                denoiser.finish_frame({key: value for key, value in frame_data.items() if key != "samples"})
+            if self._names is None:
+                self._names = passes.resolve(captured)
+            sample_features = features.sample_features(
+                passes.by_role(captured, self._names), camera, ray_start)
+            self.timings.features.append(time.perf_counter() - start)
+            if samples is None:
+                denoiser.add_samples(sample_features)
             else:
-                denoiser.denoise(frame_data)
-            self.timings.denoise.append(time.perf_counter() - start)
+                samples[:, :, sample] = sample_features
+            yield 0
+        # The first pre-roll frame starts the history; each later one follows the one before.
+        valid = np.full((camera.height, camera.width), 1.0 if group > 1 else 0.0, np.float32)
+        frame_data = features.frame_dict(samples, still, valid, camera, self.scene.name, frame,
+                                         self.scene.cycles.seed)
+        start = time.perf_counter()
+        if frame_data["samples"] is None:
+            denoiser.finish_frame({key: value for key, value in frame_data.items() if key != "samples"})
+        else:
+            denoiser.denoise(frame_data)
+        self.timings.denoise.append(time.perf_counter() - start)
 
     @staticmethod
     def _geometry(captured: dict[str, np.ndarray], names: dict[str, str], camera: motion.Camera,
@@ -476,7 +477,7 @@ class DenoiseRender:
         )
         created = output.prepare_folder(self.folder)  # an unwritable folder fails here
         try:
-            with capture_setup(scene, self.view_layer, self.settings.samples_per_frame) \
+            with capture_setup(scene, self.view_layer, self.settings) \
                     as use_compositing:
                 spp = self.settings.samples_per_frame
                 for number, frame in enumerate(self.frames):

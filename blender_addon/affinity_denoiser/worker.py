@@ -112,7 +112,7 @@ def _serve(arguments: dict[str, Any], replies: _Replies) -> None:
     settings = pipeline.Settings(**arguments["settings"])
     timings = pipeline.Timings()
     with bpy.context.temp_override(scene=scene, view_layer=view_layer), \
-            pipeline.capture_setup(scene, view_layer, settings.samples_per_frame):
+            pipeline.capture_setup(scene, view_layer, settings):
         capture = pipeline.SequenceCapture(scene, view_layer, settings, timings)
         for line in sys.stdin:
             request = json.loads(line)

@@ -56,9 +56,9 @@ def _sub_renders(width: int, height: int, spp: int, threads: int,
     object table, and for the camera-only and the object-following vectors."""
     scene = scenes.build_scene(width, height, frames=2, spp=spp, threads=threads)
     layer = scene.view_layers[0]
-    with pipeline.capture_setup(scene, layer, spp):
-        job = pipeline.SequenceCapture(scene, layer, pipeline.Settings(samples_per_frame=spp),
-                                       pipeline.Timings())
+    settings = pipeline.Settings(samples_per_frame=spp)
+    with pipeline.capture_setup(scene, layer, settings):
+        job = pipeline.SequenceCapture(scene, layer, settings, pipeline.Timings())
         if not with_motion:
             _drop_motion_aovs(layer)
         geometry = {}

@@ -125,7 +125,7 @@ def test_an_error_restores_everything_and_leaves_finished_frames(tmp_path: Any) 
 def test_cancel_during_the_preroll_leaves_nothing_and_restores_everything(tmp_path: Any) -> None:
     scene = _scene(tmp_path)
     before = material_snapshot()
-    samples_before = scene.cycles.samples
+    samples_before, seed_before = scene.cycles.samples, scene.cycles.seed
     job = _job(scene, [1, 2], preroll_frames=2)
     steps = job.steps()
     for _ in range(3):  # the first pre-roll frame and one sub-render of the second
@@ -133,7 +133,7 @@ def test_cancel_during_the_preroll_leaves_nothing_and_restores_everything(tmp_pa
     steps.close()
     assert not _files(tmp_path / "render")
     _assert_restored(scene, before)
-    assert scene.cycles.samples == samples_before
+    assert (scene.cycles.samples, scene.cycles.seed) == (samples_before, seed_before)
 
 
 def test_atomic_write_removes_a_partial_file(tmp_path: Any) -> None:

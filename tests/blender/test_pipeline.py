@@ -297,9 +297,9 @@ def test_passes_cycles_writes_for_the_first_sample_only_are_that_samples() -> No
     scene = scenes.build_scene(width=32, height=24, frames=1, spp=2)
     layer = scene.view_layers[0]
     layer.use_pass_z = True
-    with pipeline.capture_setup(scene, layer, 2):
-        capture = pipeline.SequenceCapture(scene, layer, pipeline.Settings(samples_per_frame=2),
-                                           pipeline.Timings())
+    settings = pipeline.Settings(samples_per_frame=2)
+    with pipeline.capture_setup(scene, layer, settings):
+        capture = pipeline.SequenceCapture(scene, layer, settings, pipeline.Timings())
         denoised = pipeline.run_frame(capture.frame(1))
     hit = denoised.mean[passes.AOV_DISTANCE][..., 0] > 0.0
     depth = denoised.mean["Depth"][..., 0]
@@ -320,9 +320,10 @@ def test_a_sample_count_out_of_range_is_refused_by_both_capture_routes(samples: 
 
 
 def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path: Any) -> None:
-    """Pre-roll P: the first frame is rendered P more times with the sample offsets after its
-    own and denoised as a still camera before the frame proper, which then has a history: its
-    own samples are unchanged, it is closer to the reference, and the history carries on."""
+    """Pre-roll P: the first frame is rendered P more times with other seeds and denoised as a
+    still camera before the frame proper, which then has a history: its own samples are
+    unchanged, its motion is zero and its history valid, it is closer to the reference, and the
+    history carries on into the next frame, whose samples and motion are its own."""
     from conftest import CORE_AVAILABLE
     if not CORE_AVAILABLE:
         pytest.skip("the affinity core is not importable")
@@ -354,7 +355,9 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
     error, error_plain = _relative_mse(first.denoised, reference), _relative_mse(first_plain.denoised, reference)
     print(f"frame 1: relMSE against {REFERENCE_SPP} spp: pre-roll 2 {error:.5f}, none {error_plain:.5f}")
     assert error < 0.9 * error_plain
-    np.testing.assert_array_equal(prerolled.results[1].frame_data["samples"], plain.results[1].frame_data["samples"])
+    # The next frame's samples, motion and validity are its own, as without a pre-roll.
+    for key in ("samples", "motion", "valid"):
+        np.testing.assert_array_equal(prerolled.results[1].frame_data[key], plain.results[1].frame_data[key])
     assert np.abs(prerolled.results[1].denoised - plain.results[1].denoised).mean() > 1e-4
 
 
