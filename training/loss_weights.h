@@ -26,12 +26,6 @@ inline constexpr double kTemporalWeight = 0.25;
 // coarseCell^2 pixels of the target, so its median is close to its mean: the term asks the filter
 // to spread a rare bright sample's energy over its neighbourhood rather than drop it.
 //
-// The coarse relMSE term is mean over cells of (C O - C O*)^2 / (sg(C O)^2 + 0.01), sg: no
-// gradient through the denominator. Its expectation over a noisy target's noise is the error
-// against the target's mean plus a constant, so unlike any SMAPE its minimiser is the mean: the
-// Noise2Noise loss of Lehtinen et al. 2018 on cell means. It asks the filter to keep the light of
-// rare bright samples that SMAPE lets it drop.
-//
 // firstFrame weighs the image terms (SMAPE, coarse) of a sequence's first frame against the
 // others' 1: that frame has no history, as every frame after a camera cut, and is the frame a
 // temporal denoiser does worst. The reported spatial and coarse terms stay the plain means over
@@ -43,7 +37,6 @@ struct LossWeights {
     double coarse = 0;
     int coarseCell = 8;
     double firstFrame = 1;
-    double coarseRelMse = 0;
 };
 
 }  // namespace affinity::train

@@ -13,10 +13,6 @@ at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference) {
     return ((image - reference).abs() / (image.abs() + reference.abs() + kSmapeEpsilon)).mean();
 }
 
-at::Tensor relMseLoss(const at::Tensor& image, const at::Tensor& reference) {
-    return ((image - reference).square() / (image.detach().square() + kSmapeEpsilon)).mean();
-}
-
 at::Tensor cellMeans(const at::Tensor& image, int cell) {
     if (cell < 1) throw Error("cellMeans: the cell size must be at least 1");
     const std::int64_t padBottom = (cell - image.size(2) % cell) % cell,
@@ -82,25 +78,19 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     const at::TensorOptions options = outputs[0].options();
     at::Tensor spatial = at::zeros({}, options), temporal = at::zeros({}, options);
     at::Tensor absoluteTemporal = at::zeros({}, options), coarse = at::zeros({}, options);
-    at::Tensor coarseRelMse = at::zeros({}, options);
     at::Tensor regulariser = at::zeros({}, options);
     // The image terms weighted (the first frame by weights.firstFrame), for the total.
     at::Tensor weightedSpatial = at::zeros({}, options), weightedCoarse = at::zeros({}, options);
-    at::Tensor weightedCoarseRelMse = at::zeros({}, options);
     for (std::size_t t = 0; t < frames; ++t) {
         const double frameWeight = t == 0 ? weights.firstFrame : 1.0;
         const at::Tensor frameSpatial = smapeLoss(outputs[t], references[t]);
         spatial = spatial + frameSpatial;
         weightedSpatial = weightedSpatial + frameWeight * frameSpatial;
-        if (weights.coarse != 0 || weights.coarseRelMse != 0) {
-            const at::Tensor cells = cellMeans(outputs[t], weights.coarseCell);
-            const at::Tensor referenceCells = cellMeans(references[t], weights.coarseCell);
-            const at::Tensor frameCoarse = smapeLoss(cells, referenceCells);
+        if (weights.coarse != 0) {
+            const at::Tensor frameCoarse =
+                smapeLoss(cellMeans(outputs[t], weights.coarseCell), cellMeans(references[t], weights.coarseCell));
             coarse = coarse + frameCoarse;
             weightedCoarse = weightedCoarse + frameWeight * frameCoarse;
-            const at::Tensor frameRelMse = relMseLoss(cells, referenceCells);
-            coarseRelMse = coarseRelMse + frameRelMse;
-            weightedCoarseRelMse = weightedCoarseRelMse + frameWeight * frameRelMse;
         }
         if (t > 0) {
             TemporalPair pair;
@@ -124,12 +114,11 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     terms.temporal = temporal / pairs;
     terms.absoluteTemporal = absoluteTemporal / pairs;
     terms.coarse = coarse / double(frames);
-    terms.coarseRelMse = coarseRelMse / double(frames);
     terms.regulariser = regulariser / double(frames);
     const double frameWeights = weights.firstFrame + double(frames - 1);
     terms.total = weightedSpatial / frameWeights + weights.temporal * terms.temporal +
                   weights.absoluteTemporal * terms.absoluteTemporal + weights.coarse * weightedCoarse / frameWeights +
-                  weights.coarseRelMse * weightedCoarseRelMse / frameWeights + kRegulariserWeight * terms.regulariser;
+                  kRegulariserWeight * terms.regulariser;
     return terms;
 }
 

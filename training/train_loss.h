@@ -19,9 +19,6 @@ inline constexpr double kRegulariserWeight = 1e-5;
 // mean |a - b| / (|a| + |b| + 0.01) over every element.
 at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
 
-// mean (image - reference)^2 / (image^2 + 0.01) with no gradient through the denominator.
-at::Tensor relMseLoss(const at::Tensor& image, const at::Tensor& reference);
-
 // [B, C, H, W] -> [B, C, ceil(H / cell), ceil(W / cell)]: the mean of each cell x cell block, a
 // partial block at the bottom or right edge averaged over the pixels it has.
 at::Tensor cellMeans(const at::Tensor& image, int cell);
@@ -38,7 +35,6 @@ struct LossTerms {
     at::Tensor temporal;          // SMAPE(dt O, dt O*) averaged over frame pairs (0 for one frame)
     at::Tensor absoluteTemporal;  // the absolute temporal term averaged over frame pairs
     at::Tensor coarse;            // SMAPE of the cell means averaged over frames
-    at::Tensor coarseRelMse;      // relMSE of the cell means (no gradient through the denominator)
     at::Tensor regulariser;       // sum_k E[(a^k)^2] + E[b^2], averaged over frames
 };
 

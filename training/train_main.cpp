@@ -32,8 +32,6 @@ constexpr const char* kUsage =
     "  --warped-temporal   dt O = O_t - O_{t-1} warped by the motion, valid pixels only (train_loss.h)\n"
     "  --coarse-weight W   weight of SMAPE of cell means, against dark bias (0; train_loss.h)\n"
     "  --coarse-cell N     cell side of that term, pixels (8)\n"
-    "  --coarse-relmse-weight W  weight of relMSE of cell means, unbiased under target noise (0;\n"
-    "                      loss_weights.h)\n"
     "  --first-frame-weight W  weight of a sequence's first frame in the image terms (1; loss_weights.h)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
     "  --device NAME       cpu (default), or cuda with a CUDA build of libtorch\n"
@@ -47,8 +45,7 @@ constexpr const char* kUsage =
 constexpr const char* kValueOptions =
     " --data --train --val --out --preset --init --steps --minutes --batch --crop --frames --min-spp"
     " --max-spp --val-spp --lr --lr-half-life --clip --temporal-weight --absolute-temporal-weight"
-    " --coarse-weight --coarse-cell --coarse-relmse-weight --first-frame-weight --val-every --checkpoint-every "
-    "--threads --device --seed"
+    " --coarse-weight --coarse-cell --first-frame-weight --val-every --checkpoint-every --threads --device --seed"
     " --max-sequences --keep-spp --export ";
 
 }  // namespace
@@ -145,8 +142,6 @@ int main(int argc, char** argv) {
                 options.loss.coarse = real();
             else if (flag == "--coarse-cell")
                 options.loss.coarseCell = integer();
-            else if (flag == "--coarse-relmse-weight")
-                options.loss.coarseRelMse = real();
             else if (flag == "--first-frame-weight")
                 options.loss.firstFrame = real();
             else if (flag == "--val-every")
