@@ -260,15 +260,10 @@ class SequenceCapture:
             if before_sample is not None:
                 before_sample(sample)
             captured = self._sub_render(sample)
-            start = time.perf_counter()
-            if self._names is None:
-                self._names = passes.resolve(captured)
+            sample_features = self._sample_features(captured, camera, ray_start)
             names = self._names
-            sample_features = features.sample_features(
-                passes.by_role(captured, names), camera, ray_start)
             radiance += sample_features[..., 0:3]
             radiance += sample_features[..., 3:6]
-            self.timings.features.append(time.perf_counter() - start)
             if samples is None:
                 start = time.perf_counter()
                 denoiser.add_samples(sample_features)
@@ -305,11 +300,7 @@ class SequenceCapture:
         if not self.settings.temporal:
             denoiser.reset()
         start = time.perf_counter()
-        if frame_data["samples"] is None:
-            rest = {key: value for key, value in frame_data.items() if key != "samples"}
-            denoised = np.asarray(denoiser.finish_frame(rest), dtype=np.float32)
-        else:
-            denoised = np.asarray(denoiser.denoise(frame_data), dtype=np.float32)
+        denoised = self._denoise(frame_data)
         self.timings.denoise.append(streaming_seconds + time.perf_counter() - start)
         if denoised.shape != noisy.shape:
             raise RuntimeError(f"the denoiser returned shape {denoised.shape}, "
@@ -347,13 +338,7 @@ class SequenceCapture:
         for sample in range(spp):
             if before_sample is not None:
                 before_sample(0)
-            captured = self._sub_render(sample)
-            start = time.perf_counter()
-            if self._names is None:
-                self._names = passes.resolve(captured)
-            sample_features = features.sample_features(
-                passes.by_role(captured, self._names), camera, ray_start)
-            self.timings.features.append(time.perf_counter() - start)
+            sample_features = self._sample_features(self._sub_render(sample), camera, ray_start)
             if samples is None:
                 denoiser.add_samples(sample_features)
             else:
@@ -364,11 +349,26 @@ class SequenceCapture:
         frame_data = features.frame_dict(samples, still, valid, camera, self.scene.name, frame,
                                          self.scene.cycles.seed)
         start = time.perf_counter()
-        if frame_data["samples"] is None:
-            denoiser.finish_frame({key: value for key, value in frame_data.items() if key != "samples"})
-        else:
-            denoiser.denoise(frame_data)
+        self._denoise(frame_data)
         self.timings.denoise.append(time.perf_counter() - start)
+
+    def _sample_features(self, captured: dict[str, np.ndarray], camera: motion.Camera,
+                         ray_start: np.ndarray) -> np.ndarray:
+        """One sub-render's passes -> its 18 features per pixel (the pass names resolved on the
+        first)."""
+        start = time.perf_counter()
+        if self._names is None:
+            self._names = passes.resolve(captured)
+        sample_features = features.sample_features(passes.by_role(captured, self._names), camera, ray_start)
+        self.timings.features.append(time.perf_counter() - start)
+        return sample_features
+
+    def _denoise(self, frame_data: dict[str, Any]) -> np.ndarray:
+        """The frame through the core: its streamed samples finished, or the whole frame."""
+        if frame_data["samples"] is None:
+            rest = {key: value for key, value in frame_data.items() if key != "samples"}
+            return np.asarray(self.denoiser.finish_frame(rest), dtype=np.float32)
+        return np.asarray(self.denoiser.denoise(frame_data), dtype=np.float32)
 
     @staticmethod
     def _geometry(captured: dict[str, np.ndarray], names: dict[str, str], camera: motion.Camera,
