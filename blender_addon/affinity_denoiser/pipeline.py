@@ -186,6 +186,9 @@ def capture_setup(scene: Any, view_layer: Any, settings: Settings) -> Iterator[b
                 overrides.set_if_present(cycles, "use_sample_subset", False)
                 overrides.set(cycles, "samples", 1)
             overrides.set(cycles, "sample_offset", 0)
+            # New noise every frame, whatever the scene's setting: the history averages frames'
+            # samples, which a pattern repeated on still surfaces would defeat.
+            overrides.set(cycles, "use_animated_seed", True)
             # The denoise-render replaces the view layer's sample count, if it has one.
             overrides.set_if_present(view_layer, "samples", 0)
             _activate_view_layer(overrides, view_layer)

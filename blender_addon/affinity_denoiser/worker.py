@@ -5,8 +5,8 @@ A frame that does not follow the last one denoised starts a new history. When th
 not the first of the animation, the worker first renders and denoises the ``warmup_frames``
 frames before it without returning them, so that a chunk of an animation rendered on its own
 (a render farm's task) gets frames close to those of one continuous run (docs/BLENDER.md,
-"Render farms"). Each frame's Cycles noise depends on the frame only (the seed is the
-scene's), so a warm-up frame is the same noise as in the continuous run.
+"Render farms"). Each frame's Cycles noise depends on the frame and the scene's seed only
+(the capture animates it), so a warm-up frame is the same noise as in the continuous run.
 """
 
 from __future__ import annotations

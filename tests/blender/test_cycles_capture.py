@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import sys
+from typing import Any
 
 import numpy as np
 import pytest
@@ -76,6 +78,48 @@ def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[st
         assert abs((a / (1 + a)).mean() / (b / (1 + b)).mean() - 1) < 0.05
 
 
+def test_refreshed_inputs_keep_the_targets_and_blenders_frames(
+        captured: tuple[str, dict], tmp_path: Any) -> None:
+    """make_data --refresh-inputs: a sequence of an older capture path gets its inputs captured
+    again; its references and Blender's frames are kept, not rendered again."""
+    import affinity_core
+    import make_data
+
+    folder, summary = captured
+    assert make_data.capture_version(folder) == capture.CAPTURE_VERSION
+    old = str(tmp_path / "old")
+    shutil.copytree(folder, old)
+    del summary["capture_version"]  # as written before the field existed
+    with open(os.path.join(old, "render_summary.json"), "w") as handle:
+        json.dump(summary, handle)
+    assert make_data.capture_version(old) == 1
+    assert make_data.capture_version(str(tmp_path / "missing")) is None
+    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
+                                      kind="interior")
+    scene.cycles.seed = SEED
+    with pytest.raises(ValueError, match="has 4 samples per frame, not 2"):
+        capture.refresh_inputs(scene, str(tmp_path / "wrong"), old,
+                               capture.CaptureSettings(spp=2, target_spp=64, targets=2))
+    refreshed = str(tmp_path / "refreshed")
+    new_summary = capture.refresh_inputs(scene, refreshed, old, SETTINGS)
+    assert make_data.capture_version(refreshed) == capture.CAPTURE_VERSION
+    assert new_summary["target_half_smape"] == summary["target_half_smape"]
+    for name in ("blender_oidn.npz", "reference_halves.npz"):
+        with open(os.path.join(old, name), "rb") as a, open(os.path.join(refreshed, name), "rb") as b:
+            assert a.read() == b.read()
+    paths = affinity_core.list_frame_files(refreshed)
+    assert len(paths) == FRAMES
+    for path, old_path in zip(paths, affinity_core.list_frame_files(old)):
+        frame, before = affinity_core.read_frame(path), affinity_core.read_frame(old_path)
+        np.testing.assert_array_equal(frame["reference"], before["reference"])
+        # The same capture path and scene: the same geometry features, and radiance that
+        # differs in a few pixels only (a scene built again in one process is not bit-equal in
+        # Cycles' light sampling: 3 % of the radiance values here).
+        np.testing.assert_array_equal(frame["samples"][..., 6:], before["samples"][..., 6:])
+        assert np.mean(frame["samples"][..., :6] != before["samples"][..., :6]) < 0.1
+        assert frame["info"]["frame_index"] == before["info"]["frame_index"]
+
+
 def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blender(
         captured: tuple[str, dict]) -> None:
     import affinity_core
@@ -101,5 +145,6 @@ def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blende
     assert ours_mean < RECORDED_RATIO_TO_BLENDER * 1.05 * blender_mean
 
 
-#: ours / Blender's OIDN SMAPE on this sequence with the built-in model (0.1971 / 0.1909).
-RECORDED_RATIO_TO_BLENDER = 1.03
+#: ours / Blender's OIDN SMAPE on this sequence with the built-in model (0.2036 / 0.1909, the
+#: capture animating the seed; 0.1971 before, with the scene's static seed).
+RECORDED_RATIO_TO_BLENDER = 1.07

@@ -31,6 +31,7 @@ def _scene_settings(scene: Any) -> dict[str, Any]:
         "offset": scene.cycles.sample_offset,
         "adaptive": scene.cycles.use_adaptive_sampling,
         "denoising": scene.cycles.use_denoising,
+        "animated_seed": scene.cycles.use_animated_seed,
         "frame": scene.frame_current,
         "passes": tuple(getattr(layer, n) for n in names),
         "denoising_passes": layer.cycles.denoising_store_passes,
@@ -60,10 +61,13 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
                      "frame_start": node.frame_start, "frame_offset": node.frame_offset,
                      "frame_duration": node.frame_duration}
 
-    plain, reference = {}, {}
+    assert not scene.cycles.use_animated_seed  # the user's setting, which the capture overrides
+    plain, plain_static, reference = {}, {}, {}
     for frame in job.frames:
         scene.frame_set(frame)
-        plain[frame] = capture(scene)["Combined"][..., :3]
+        plain_static[frame] = capture(scene)["Combined"][..., :3]
+        plain[frame] = capture(scene, lambda s: setattr(s.cycles, "use_animated_seed", True))["Combined"][..., :3]
+        scene.cycles.use_animated_seed = False
 
         def high_spp(s: Any) -> None:
             s.cycles.samples = REFERENCE_SPP
@@ -71,7 +75,7 @@ def run(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
 
         reference[frame] = capture(scene, high_spp)["Combined"][..., :3]
         scene.cycles.samples, scene.cycles.seed = scenes.SPP, 0
-    return {"job": job, "before": before, "after": after, "plain": plain,
+    return {"job": job, "before": before, "after": after, "plain": plain, "plain_static": plain_static,
             "reference": reference, "root": root}
 
 
@@ -81,8 +85,10 @@ def test_sample_mean_equals_a_full_render(run: dict[str, Any]) -> None:
                     "subsets (bpy >= 4.5 checked; 4.2 and 4.3 differ: docs/BLENDER.md)")
     for result in run["job"].results:
         full = run["plain"][result.frame]
-        # Sum of per-sample diffuse + specular over the samples = Cycles' 4-spp Combined.
+        # Sum of per-sample diffuse + specular over the samples = Cycles' 4-spp Combined, with
+        # the animated seed the capture turns on (the scene has it off): not the scene's noise.
         np.testing.assert_allclose(result.noisy, full, rtol=1e-5, atol=1e-5)
+        assert np.abs(result.noisy - run["plain_static"][result.frame]).mean() > 1e-3
 
 
 def test_features_within_schema_ranges(run: dict[str, Any]) -> None:

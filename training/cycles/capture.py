@@ -33,6 +33,11 @@ import numpy as np
 from affinity_denoiser import engine, passes, pipeline
 from affinity_denoiser.overrides import Overrides
 
+#: Raised whenever the extension's capture path changes what it gives the core, so that
+#: sequences captured before can be found and their inputs refreshed (``refresh_inputs``).
+#: 2: the capture animates Cycles' seed whatever the scene's setting.
+CAPTURE_VERSION = 2
+
 #: Added to the scene's seed for the k-th target render (k = 1, 2): far from any seed a
 #: sequence's own frames use, so the target's samples share nothing with the input's.
 TARGET_SEED_STRIDE = 7_919_111
@@ -87,21 +92,11 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
     import affinity_core
     from affinity_core import metrics
 
-    frames = list(range(scene.frame_start, scene.frame_end + 1))
     os.makedirs(folder, exist_ok=True)
     if affinity_core.list_frame_files(folder):
         raise FileExistsError(f"{folder} already holds frame files")
-    scratch = os.path.join(folder, "extension_output")  # the run's own denoised frames
-    start = time.perf_counter()
-    run = pipeline.DenoiseRender(
-        scene, scene.view_layers[0], frames,
-        # No pre-roll: a frame file holds its own samples only, so the first one has no history.
-        pipeline.Settings(samples_per_frame=settings.spp, output_folder=scratch, preroll_frames=0),
-        progress=lambda done, total, text: progress(f"input {text}"))
-    run.keep_frames = True
-    results = run.run()
-    input_seconds = time.perf_counter() - start
-    shutil.rmtree(scratch, ignore_errors=True)
+    run, input_seconds = _capture_inputs(scene, folder, settings, progress)
+    results = run.results
 
     base_seed = int(scene.cycles.seed)
     target_seconds = 0.0
@@ -136,7 +131,6 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
     if halves:
         np.savez_compressed(os.path.join(folder, "reference_halves.npz"), **halves)
 
-    timings = run.timings
     summary = {
         "scene_name": scene.name,
         "frames": len(results),
@@ -146,23 +140,97 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         "reference_spp": settings.target_spp * settings.targets,
         "target_renders": settings.targets,
         "seed": base_seed,
+        # The scene's setting (the targets and Blender's own denoiser follow it; the input's
+        # capture animates the seed whatever it is).
         "animated_seed": bool(scene.cycles.use_animated_seed),
-        "blender_version": ".".join(str(v) for v in __import__("bpy").app.version),
-        "seconds": {
-            "input": input_seconds,
-            "targets": target_seconds,
-            "sub_renders": float(np.sum(timings.sub_renders)),
-            "features": float(np.sum(timings.features)),
-            "motion": float(np.sum(timings.motion)),
-            "denoise": float(np.sum(timings.denoise)),
-        },
+        **_input_summary(),
+        "seconds": {"input": input_seconds, "targets": target_seconds, **_input_seconds(run)},
         # SMAPE between the two independent target halves, per frame: the reference (their
         # mean) has roughly half this error's variance against the converged image.
         "target_half_smape": target_noise,
         "blender_oidn_seconds": {str(s): v for s, v in oidn_seconds.items()},
     }
+    _write_summary(folder, summary)
+    return summary
+
+
+def refresh_inputs(scene: Any, folder: str, old_folder: str, settings: CaptureSettings,
+                   progress: Callable[[str], None] = lambda text: None) -> dict[str, Any]:
+    """Captures the inputs of ``scene``'s frames again into ``folder`` (created; must not hold
+    frames yet), taking each frame's reference and the sequence's other files from
+    ``old_folder``, a complete sequence of the same scene from an older capture path: the
+    targets and Blender's own denoiser do not depend on the capture, and cost most of the time.
+    Returns the updated summary, also written to render_summary.json."""
+    import affinity_core
+
+    with open(os.path.join(old_folder, "render_summary.json")) as handle:
+        summary = json.load(handle)
+    if summary["spp"] != settings.spp:
+        raise ValueError(f"{old_folder} has {summary['spp']} samples per frame, not {settings.spp}")
+    os.makedirs(folder, exist_ok=True)
+    if affinity_core.list_frame_files(folder):
+        raise FileExistsError(f"{folder} already holds frame files")
+    run, input_seconds = _capture_inputs(scene, folder, settings, progress)
+    if len(run.results) != summary["frames"]:
+        raise ValueError(f"{old_folder} has {summary['frames']} frames, the scene {len(run.results)}")
+    for index, result in enumerate(run.results):
+        name = affinity_core.frame_file_name(index)
+        old = affinity_core.read_frame(os.path.join(old_folder, name))
+        frame = result.frame_data
+        assert frame is not None
+        frame["reference"] = old["reference"]
+        frame["info"]["reference_spp"] = old["info"]["reference_spp"]
+        frame["info"]["frame_index"] = index
+        affinity_core.write_frame(os.path.join(folder, name), frame)
+    for extra in ("blender_oidn.npz", "reference_halves.npz"):
+        if os.path.isfile(os.path.join(old_folder, extra)):
+            shutil.copyfile(os.path.join(old_folder, extra), os.path.join(folder, extra))
+    summary.update(_input_summary())
+    summary["seconds"].update({"input": input_seconds, **_input_seconds(run)})
+    _write_summary(folder, summary)
+    return summary
+
+
+def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
+                    progress: Callable[[str], None]) -> tuple[pipeline.DenoiseRender, float]:
+    """Every frame of ``scene`` (frame_start..frame_end) through the extension's capture, its
+    per-sample data kept; the run and its wall seconds."""
+    frames = list(range(scene.frame_start, scene.frame_end + 1))
+    scratch = os.path.join(folder, "extension_output")  # the run's own denoised frames
+    start = time.perf_counter()
+    run = pipeline.DenoiseRender(
+        scene, scene.view_layers[0], frames,
+        # No pre-roll: a frame file holds its own samples only, so the first one has no history.
+        pipeline.Settings(samples_per_frame=settings.spp, output_folder=scratch, preroll_frames=0),
+        progress=lambda done, total, text: progress(f"input {text}"))
+    run.keep_frames = True
+    run.run()
+    seconds = time.perf_counter() - start
+    shutil.rmtree(scratch, ignore_errors=True)
+    return run, seconds
+
+
+def _input_summary() -> dict[str, Any]:
+    """What a summary records of the capture that made its inputs."""
+    return {
+        "capture_version": CAPTURE_VERSION,
+        "blender_version": ".".join(str(v) for v in __import__("bpy").app.version),
+    }
+
+
+def _input_seconds(run: pipeline.DenoiseRender) -> dict[str, float]:
+    timings = run.timings
+    return {
+        "sub_renders": float(np.sum(timings.sub_renders)),
+        "features": float(np.sum(timings.features)),
+        "motion": float(np.sum(timings.motion)),
+        "denoise": float(np.sum(timings.denoise)),
+    }
+
+
+def _write_summary(folder: str, summary: dict[str, Any]) -> None:
+    """render_summary.json, written last and atomically: its presence marks a complete sequence."""
     with open(os.path.join(folder, "render_summary.json.tmp"), "w") as handle:
         json.dump(summary, handle, indent=1)
     os.replace(os.path.join(folder, "render_summary.json.tmp"),
                os.path.join(folder, "render_summary.json"))
-    return summary

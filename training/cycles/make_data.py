@@ -2,7 +2,7 @@
 
     .venv-blender/bin/python training/cycles/make_data.py [--out DIR] [--train-seeds 0-99]
         [--val-seeds 9000-9005] [--frames 8] [--train-frames 6] [--size 160x96] [--spp 8] [--train-target-spp 64]
-        [--val-target-spp 256] [--blender-oidn-spp 2,4,8] [--threads 2]
+        [--val-target-spp 256] [--blender-oidn-spp 2,4,8] [--threads 2] [--refresh-inputs]
 
 Each sequence is a scene of the generator (scene_generator.py) by seed, captured by capture.py:
 ``OUT/train/cycles_NNNNN`` with one independent noisy target per frame (Noise2Noise),
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import argparse
 import glob
+import json
 import os
 import shutil
 import sys
@@ -59,6 +60,8 @@ def spp_list(text: str) -> tuple[int, ...]:
 
 
 def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace) -> None:
+    """Renders the sequence of ``seed`` into ``folder``, or, with ``args.refresh_inputs`` and a
+    complete ``folder`` from an older capture path, captures its inputs again."""
     width, height = args.size
     validation = split == "val"
     frames = args.frames if validation else args.train_frames
@@ -73,15 +76,34 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
         targets=2 if validation else 1,
         blender_oidn_spp=args.blender_oidn_spp if validation else (),
     )
-    for stale in glob.glob(glob.escape(folder) + ".tmp-*"):  # left by a stopped run
-        shutil.rmtree(stale, ignore_errors=True)
+    for stale in glob.glob(glob.escape(folder) + ".tmp-*") + glob.glob(glob.escape(folder) + ".old-*"):
+        shutil.rmtree(stale, ignore_errors=True)  # left by a stopped run
     temporary = folder + f".tmp-{os.getpid()}"
-    summary = capture.capture_sequence(scene, temporary, settings)
-    os.replace(temporary, folder)
+    if os.path.isdir(folder):
+        summary = capture.refresh_inputs(scene, temporary, folder, settings)
+        # Two renames: a stop between them leaves the complete old sequence in .old-*, which
+        # the next run deletes and renders again.
+        old = folder + f".old-{os.getpid()}"
+        os.replace(folder, old)
+        os.replace(temporary, folder)
+        shutil.rmtree(old)
+    else:
+        summary = capture.capture_sequence(scene, temporary, settings)
+        os.replace(temporary, folder)
     kind = scene_generator.describe(scene)["kind"]
     seconds = summary["seconds"]
     print(f"{split} cycles_{seed:05d} ({kind}) done: input {seconds['input']:.1f} s, "
           f"targets {seconds['targets']:.1f} s", flush=True)
+
+
+def capture_version(folder: str) -> int | None:
+    """The capture path that made a complete sequence's inputs (1: before the field existed);
+    None where the sequence is not complete."""
+    try:
+        with open(os.path.join(folder, "render_summary.json")) as handle:
+            return int(json.load(handle).get("capture_version", 1))
+    except FileNotFoundError:
+        return None
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -98,6 +120,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--val-target-spp", type=int, default=256)
     parser.add_argument("--blender-oidn-spp", type=spp_list, default=(2, 4, 8))
     parser.add_argument("--threads", type=int, default=2)
+    parser.add_argument("--refresh-inputs", action="store_true",
+                        help="capture again the inputs of sequences made by an older capture path "
+                             "(capture.CAPTURE_VERSION), keeping their targets and Blender's frames")
     args = parser.parse_args(argv)
     if min(args.frames, args.train_frames) < 2:
         parser.error("--frames and --train-frames must be at least 2 (motion needs a previous frame)")
@@ -106,9 +131,15 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [("val", s) for s in args.val_seeds] + [("train", s) for s in args.train_seeds]
     todo = [(split, seed, os.path.join(args.out, split, f"cycles_{seed:05d}"))
             for split, seed in jobs]
-    todo = [job for job in todo if not os.path.isfile(os.path.join(job[2], "render_summary.json"))]
+    versions = {job[2]: capture_version(job[2]) for job in todo}
+    stale = [job for job in todo if versions[job[2]] not in (None, capture.CAPTURE_VERSION)]
+    todo = [job for job in todo if versions[job[2]] is None or (args.refresh_inputs and job in stale)]
     print(f"make_data: {len(jobs) - len(todo)} of {len(jobs)} sequences already in {args.out}",
           flush=True)
+    if stale and not args.refresh_inputs:
+        print(f"make_data: {len(stale)} of them come from an older capture path "
+              f"(capture version < {capture.CAPTURE_VERSION}); --refresh-inputs captures their inputs again",
+              flush=True)
     start = time.perf_counter()
     for done, (split, seed, folder) in enumerate(todo):
         os.makedirs(os.path.dirname(folder), exist_ok=True)
