@@ -82,8 +82,9 @@ def test_refreshed_inputs_keep_the_targets_and_blenders_frames(
         captured: tuple[str, dict], tmp_path: Any) -> None:
     """make_data --refresh-inputs: a sequence of an older capture path gets its inputs captured
     again; its references and Blender's frames are kept, not rendered again."""
-    import affinity_core
     import make_data
+
+    import affinity_core
 
     folder, summary = captured
     assert make_data.capture_version(folder) == capture.CAPTURE_VERSION
