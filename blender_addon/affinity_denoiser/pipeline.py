@@ -252,8 +252,7 @@ class SequenceCapture:
         prerolled = self.settings.temporal and self.last_frame is None and self.settings.preroll_frames > 0
         if prerolled:
             yield from self._preroll(frame, camera, ray_start, stream, before_sample)
-        samples = None if stream else np.empty(
-            (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
+        samples = None if stream else self._sample_buffer(camera)
         radiance = np.zeros((camera.height, camera.width, 3), np.float32)
         streaming_seconds = 0.0  # the denoiser's share of the sample loop
         sums: dict[str, np.ndarray] = {}
@@ -336,8 +335,7 @@ class SequenceCapture:
                        before_sample: Callable[[int], None] | None, group: int) -> Generator[int, None, None]:
         spp, denoiser = self.settings.samples_per_frame, self.denoiser
         still = np.zeros((camera.height, camera.width, 2), np.float32)
-        samples = None if stream else np.empty(
-            (camera.height, camera.width, spp, features.FEATURE_COUNT), np.float32)
+        samples = None if stream else self._sample_buffer(camera)
         for sample in range(spp):
             if before_sample is not None:
                 before_sample(0)
@@ -354,6 +352,11 @@ class SequenceCapture:
         start = time.perf_counter()
         self._denoise(frame_data)
         self.timings.denoise.append(time.perf_counter() - start)
+
+    def _sample_buffer(self, camera: motion.Camera) -> np.ndarray:
+        """Room for a frame's per-sample features where they are kept, not streamed."""
+        return np.empty((camera.height, camera.width, self.settings.samples_per_frame,
+                         features.FEATURE_COUNT), np.float32)
 
     def _sample_features(self, captured: dict[str, np.ndarray], camera: motion.Camera,
                          ray_start: np.ndarray) -> np.ndarray:

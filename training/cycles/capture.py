@@ -120,12 +120,8 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
             image, seconds = render_combined(scene, spp, base_seed, denoise=True)
             oidn[f"spp{spp}_frame{index}"] = image
             oidn_seconds[spp].append(seconds)
-        frame = result.frame_data
-        assert frame is not None
-        frame["reference"] = np.mean(targets, axis=0).astype(np.float32)
-        frame["info"]["reference_spp"] = settings.target_spp * settings.targets
-        frame["info"]["frame_index"] = index
-        affinity_core.write_frame(os.path.join(folder, affinity_core.frame_file_name(index)), frame)
+        _write_frame(folder, index, result, np.mean(targets, axis=0).astype(np.float32),
+                     settings.target_spp * settings.targets)
     if oidn:
         np.savez_compressed(os.path.join(folder, "blender_oidn.npz"), **oidn)
     if halves:
@@ -174,14 +170,8 @@ def refresh_inputs(scene: Any, folder: str, old_folder: str, settings: CaptureSe
     if len(run.results) != summary["frames"]:
         raise ValueError(f"{old_folder} has {summary['frames']} frames, the scene {len(run.results)}")
     for index, result in enumerate(run.results):
-        name = affinity_core.frame_file_name(index)
-        old = affinity_core.read_frame(os.path.join(old_folder, name))
-        frame = result.frame_data
-        assert frame is not None
-        frame["reference"] = old["reference"]
-        frame["info"]["reference_spp"] = old["info"]["reference_spp"]
-        frame["info"]["frame_index"] = index
-        affinity_core.write_frame(os.path.join(folder, name), frame)
+        old = affinity_core.read_frame(os.path.join(old_folder, affinity_core.frame_file_name(index)))
+        _write_frame(folder, index, result, old["reference"], old["info"]["reference_spp"])
     for extra in ("blender_oidn.npz", "reference_halves.npz"):
         if os.path.isfile(os.path.join(old_folder, extra)):
             shutil.copyfile(os.path.join(old_folder, extra), os.path.join(folder, extra))
@@ -208,6 +198,19 @@ def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
     seconds = time.perf_counter() - start
     shutil.rmtree(scratch, ignore_errors=True)
     return run, seconds
+
+
+def _write_frame(folder: str, index: int, result: Any, reference: np.ndarray, reference_spp: int) -> None:
+    """Frame ``index`` of a capture (``result``: its kept frame data) with its reference, as a
+    frame file of ``folder``."""
+    import affinity_core
+
+    frame = result.frame_data
+    assert frame is not None
+    frame["reference"] = reference
+    frame["info"]["reference_spp"] = reference_spp
+    frame["info"]["frame_index"] = index
+    affinity_core.write_frame(os.path.join(folder, affinity_core.frame_file_name(index)), frame)
 
 
 def _input_summary() -> dict[str, Any]:
