@@ -328,8 +328,9 @@ def test_a_sample_count_out_of_range_is_refused_by_both_capture_routes(samples: 
 def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path: Any) -> None:
     """Pre-roll P: the first frame is rendered P more times with other seeds and denoised as a
     still camera before the frame proper, which then has a history: its own samples are
-    unchanged, its motion is zero and its history valid, it is closer to the reference, and the
-    history carries on into the next frame, whose samples and motion are its own."""
+    unchanged, its motion is zero and its history valid, it is closer to the reference (the
+    median over seeds, and on most seeds), and the history carries on into the next frame,
+    whose samples and motion are its own."""
     from conftest import CORE_AVAILABLE
     if not CORE_AVAILABLE:
         pytest.skip("the affinity core is not importable")
@@ -341,16 +342,29 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
         s.cycles.seed = 1  # independent of the samples being judged
 
     reference = capture(scene, high_spp)["Combined"][..., :3]
-    scene.cycles.samples, scene.cycles.seed = scenes.SPP, 0
+    scene.cycles.samples = scenes.SPP
     spp = scenes.SPP
-    jobs = {}
-    for preroll in (0, 2):
-        scene.render.filepath = str(tmp_path / f"preroll{preroll}" / "frame_")
+
+    def denoise_render(seed: int, preroll: int) -> pipeline.DenoiseRender:
+        scene.cycles.seed = seed
+        scene.render.filepath = str(tmp_path / f"seed{seed}_preroll{preroll}" / "frame_")
         job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2],
                                      pipeline.Settings(samples_per_frame=spp, preroll_frames=preroll))
         job.keep_frames = True
         job.run()
-        jobs[preroll] = job
+        return job
+
+    # Quality over six seeds: at 4 spp and 64x48 one seed's error swings by up to 4x, and one
+    # firefly in a pre-roll frame can stay in the history (bpy 5.3.0, seed 0: 0.208 against
+    # 0.122 without; the pre-roll won on 5 of 6 seeds on 5.0.1 and on 5.3.0).
+    errors: dict[int, list[float]] = {0: [], 2: []}
+    jobs = {}
+    for seed in range(6):
+        for preroll in (0, 2):
+            job = denoise_render(seed, preroll)
+            errors[preroll].append(_relative_mse(job.results[0].denoised, reference))
+            if seed == 0:
+                jobs[preroll] = job
     plain, prerolled = jobs[0], jobs[2]
     assert len(plain.timings.sub_renders) == 2 * spp
     assert len(prerolled.timings.sub_renders) == 2 * spp + 2 * spp
@@ -358,9 +372,11 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
     np.testing.assert_array_equal(first.frame_data["samples"], first_plain.frame_data["samples"])
     assert not first_plain.frame_data["valid"].any()
     assert first.frame_data["valid"].all() and not first.frame_data["motion"].any()
-    error, error_plain = _relative_mse(first.denoised, reference), _relative_mse(first_plain.denoised, reference)
-    print(f"frame 1: relMSE against {REFERENCE_SPP} spp: pre-roll 2 {error:.5f}, none {error_plain:.5f}")
+    error, error_plain = float(np.median(errors[2])), float(np.median(errors[0]))
+    print(f"frame 1: relMSE against {REFERENCE_SPP} spp, median of 6 seeds: pre-roll 2 {error:.5f}, "
+          f"none {error_plain:.5f}; per seed {errors}")
     assert error < 0.9 * error_plain
+    assert sum(with_preroll < without for with_preroll, without in zip(errors[2], errors[0])) >= 4
     # The next frame's samples, motion and validity are its own, as without a pre-roll.
     for key in ("samples", "motion", "valid"):
         np.testing.assert_array_equal(prerolled.results[1].frame_data[key], plain.results[1].frame_data[key])
