@@ -3,7 +3,8 @@
 Cycles' Vector pass forces a full re-sync of the scene on every render when persistent data
 is on, and is all zero when motion blur is on, so motion is computed here. Static surfaces are
 reprojected from the camera matrices of consecutive frames and the depth of the sample at
-offset 0 (Cycles writes its Z pass only for that sample). Surfaces of objects that moved are
+offset 0 (Cycles writes its Z pass only for that sample; where it scattered in a volume, a later
+sample's). Surfaces of objects that moved are
 reprojected through the object's own transform: materials.py writes the hit point in object
 space and the object's Object Info "Random" value (which identifies the object or instance)
 as shader AOVs, and the object's world matrix at the previous frame carries the point there.
@@ -105,6 +106,16 @@ def ray_start_distance(camera: Camera) -> np.ndarray:
     return np.linalg.norm(near_plane_points(camera), axis=-1)
 
 
+def depth_from_distance(camera: Camera, distance: np.ndarray) -> np.ndarray:
+    """(H, W) camera-space Z depth of points at the given distance from the eye (Camera Data's
+    View Distance) on the rays through the pixel centres, as Cycles' Z pass measures depth."""
+    near = near_plane_points(camera)
+    if camera.orthographic:  # the rays are parallel; the eye sits at the camera's origin
+        return np.sqrt(np.maximum(distance.astype(np.float64) ** 2
+                                  - near[..., 0] ** 2 - near[..., 1] ** 2, 0.0))
+    return distance * (-near[..., 2] / np.linalg.norm(near, axis=-1))
+
+
 def world_points(camera: Camera, planar_depth: np.ndarray) -> np.ndarray:
     """Homogeneous world points (H, W, 4) of the surfaces at the given camera-space Z depth.
 
@@ -146,6 +157,23 @@ def project(camera: Camera, points: np.ndarray) -> tuple[np.ndarray, np.ndarray,
     return px, py, -in_camera[..., 2]
 
 
+def depth_slope(depth: np.ndarray, miss: np.ndarray) -> np.ndarray:
+    """(H, W) how much the depth changes across one pixel: per axis the smaller of the changes to
+    the two neighbours (the smooth side, so that a depth edge does not count), summed.
+
+    A pixel's depth is that of one sample somewhere in it, and two frames' samples fall at
+    different places in the pixel; on a surface seen at a grazing angle their depths differ by
+    up to this much, more than DEPTH_TOLERANCE.
+    """
+    values = np.where(miss, np.nan, depth.astype(np.float64))
+    padded = np.pad(values, 1, mode="edge")
+    slope = np.zeros(depth.shape)
+    for before, after in ((padded[1:-1, :-2], padded[1:-1, 2:]), (padded[:-2, 1:-1], padded[2:, 1:-1])):
+        change = np.fmin(np.abs(values - before), np.abs(values - after))
+        slope += np.nan_to_num(change, nan=0.0)
+    return slope
+
+
 def _seen_before(
     px: np.ndarray,
     py: np.ndarray,
@@ -161,6 +189,7 @@ def _seen_before(
     """
     height, width = previous_depth.shape
     previous_miss = (previous_depth >= MISS_DEPTH) | (previous_depth <= 0)
+    tolerance = DEPTH_TOLERANCE * previous_depth + depth_slope(previous_depth, previous_miss)
     matches = np.zeros(px.shape, bool)
     base_x = np.floor(px - 0.5)
     base_y = np.floor(py - 0.5)
@@ -172,7 +201,8 @@ def _seen_before(
             sy = np.clip(base_y + dy, 0, height - 1)
             seen = previous_depth[sy, sx]
             seen_miss = previous_miss[sy, sx]
-            same_depth = np.abs(seen - expected_depth) <= DEPTH_TOLERANCE * np.abs(expected_depth)
+            same_depth = np.abs(seen - expected_depth) <= np.maximum(
+                DEPTH_TOLERANCE * np.abs(expected_depth), tolerance[sy, sx])
             read = weight_x * weight_y > MIN_FETCH_WEIGHT
             matches |= read & np.where(miss, seen_miss, ~seen_miss & same_depth)
     return matches
@@ -298,12 +328,40 @@ class FrameGeometry:
     """What motion needs of one frame. Without the object fields only the camera moves."""
 
     camera: Camera
-    depth: np.ndarray  # (H, W) Cycles' planar Z pass of the sample at offset 0
-    #: (H, W) the Object Info "Random" value of the object hit by the sample at offset 0, NaN
-    #: where unknown (a miss, a surface without our AOVs).
+    #: (H, W) planar depth: Cycles' Z pass of the sample at offset 0, or where that sample
+    #: scattered in a volume, the first later sample's that reached a surface (add_surfaces).
+    depth: np.ndarray
+    #: (H, W) the Object Info "Random" value of the object hit by the same sample, NaN where
+    #: unknown (a miss, a surface without our AOVs).
     object_key: np.ndarray | None = None
     object_local: np.ndarray | None = None  # (H, W, 3) that hit point in object space
     transforms: ObjectTransforms | None = None
+    #: (H, W) bool: no sample so far reached a surface, and the one at offset 0 scattered in a
+    #: volume (Cycles wrote no depth but a denoising normal: a miss writes neither).
+    scattered: np.ndarray | None = None
+
+    def add_surfaces(self, distance: np.ndarray, object_key: np.ndarray,
+                     object_local: np.ndarray) -> None:
+        """Gives the pixels where every sample so far scattered in a volume the surface that a
+        later sample reached: its view distance (0 where our AOVs were not written), object key
+        and object-space point.
+
+        In fog, a camera ray that scatters before the first surface writes no Z and no AOV: the
+        sample at offset 0 alone would leave those pixels, scattered at random, as misses; the
+        validity test would then drop their history at random from frame to frame, and a moving
+        camera would move them as the environment. Pixels where every sample scattered stay
+        misses.
+        """
+        if self.scattered is None:
+            return
+        filled = self.scattered & (distance > 0.0)
+        if not filled.any():
+            return
+        self.depth[filled] = depth_from_distance(self.camera, distance)[filled]
+        if self.object_key is not None and self.object_local is not None:
+            self.object_key[filled] = object_key[filled]
+            self.object_local[filled] = object_local[filled]
+        self.scattered &= ~filled
 
 
 def _object_to_camera(camera: Camera, matrices: np.ndarray) -> np.ndarray:

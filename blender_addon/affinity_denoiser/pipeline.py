@@ -274,6 +274,11 @@ class SequenceCapture:
                 samples[:, :, sample] = sample_features
             if sample == 0:  # Cycles writes Z for the sample at offset 0 only
                 geometry = self._geometry(captured, names, camera, transforms)
+            else:
+                assert geometry is not None
+                geometry.add_surfaces(captured[names["aov_distance"]][..., 0],
+                                      captured[names["aov_object"]][..., 0],
+                                      captured[names["aov_local"]][..., :3])
             # Blender 5.2 writes float32's largest value where a ray misses (Denoising Depth):
             # its sum is inf, as it should be, and no error.
             with np.errstate(over="ignore"):
@@ -381,12 +386,15 @@ class SequenceCapture:
                   transforms: motion.ObjectTransforms) -> motion.FrameGeometry:
         """What motion needs of the sample at offset 0 (copies: the passes are views)."""
         written = captured[names["aov_distance"]][..., 0] > 0.0  # our AOVs reached the hit
+        depth = captured[names["depth"]][..., 0].copy()
+        normal = captured[names["denoising_normal"]][..., :3]
         return motion.FrameGeometry(
             camera=camera,
-            depth=captured[names["depth"]][..., 0].copy(),
+            depth=depth,
             object_key=np.where(written, captured[names["aov_object"]][..., 0], np.nan),
             object_local=captured[names["aov_local"]][..., :3].copy(),
             transforms=transforms,
+            scattered=(depth >= motion.MISS_DEPTH) & np.any(normal != 0.0, axis=-1),
         )
 
     def _sub_render(self, sample: int) -> dict[str, np.ndarray]:

@@ -130,8 +130,18 @@ def _object_index(captured: dict[str, np.ndarray]) -> np.ndarray:
     return np.rint(captured[name][..., 0]).astype(int)
 
 
-def _run(moving_camera: bool, folder: Any) -> dict[str, Any]:
+def _add_fog(scene: bpy.types.Scene, density: float) -> None:
+    """A homogeneous world volume: camera rays scatter in it before reaching a surface."""
+    tree = scene.world.node_tree
+    scatter = tree.nodes.new("ShaderNodeVolumeScatter")
+    scatter.inputs["Density"].default_value = density
+    tree.links.new(scatter.outputs["Volume"], tree.nodes["World Output"].inputs["Volume"])
+
+
+def _run(moving_camera: bool, folder: Any, fog_density: float = 0.0) -> dict[str, Any]:
     scene = build_scene(moving_camera, folder)
+    if fog_density > 0.0:
+        _add_fog(scene, fog_density)
     job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
                                  pipeline.Settings(samples_per_frame=SPP))
     job.keep_frames = True
@@ -225,6 +235,23 @@ def test_uncovered_pixels_are_invalid(static_camera: dict[str, Any]) -> None:
         assert now["valid"][static_now & ~uncovered].mean() > 0.95
 
 
+def test_fog_keeps_the_history_of_surfaces_behind_it(static_camera: dict[str, Any],
+                                                     tmp_path: Any) -> None:
+    """In fog, the sample at offset 0 of many pixels scatters before the floor and writes no
+    depth; the later samples that reach the floor give it, so those pixels keep their history
+    instead of being dropped at random."""
+    fog = _run(False, tmp_path, fog_density=0.05)
+    for frame in (2, 3):
+        before, now = static_camera[frame - 1], static_camera[frame]  # the same frames, no fog
+        floor = (now["index"] == FLOOR) & (before["index"] == FLOOR)
+        assert floor.sum() > 0.3 * WIDTH * HEIGHT
+        # The fog is thick enough that the first sample misses the floor in many pixels.
+        assert (~fog[frame]["hit"][floor]).mean() > 0.2
+        assert fog[frame]["valid"][floor].mean() > 0.95
+        # A later sample may hit a mover at the floor's edge within the pixel.
+        assert (np.abs(fog[frame]["motion"][floor]).max(axis=-1) < 1e-4).mean() > 0.99
+
+
 def test_an_object_that_appears_has_no_history(static_camera: dict[str, Any]) -> None:
     appeared = static_camera[2]["index"] == POPPER
     assert appeared.sum() > 20 and not static_camera[2]["valid"][appeared].any()
@@ -293,6 +320,7 @@ def test_motion_blur_keeps_object_motion(tmp_path: Any) -> None:
     def one_sample(s: Any) -> None:
         s.cycles.samples = 1
         layer.use_pass_z = layer.use_pass_object_index = layer.use_pass_vector = True
+        layer.cycles.denoising_store_passes = True  # the Denoising Normal tells a volume apart
 
     geometry, captured = {}, {}
     with passes.shader_aovs(layer), materials.surface_aovs(bpy.data):
@@ -301,7 +329,8 @@ def test_motion_blur_keeps_object_motion(tmp_path: Any) -> None:
             depsgraph = bpy.context.evaluated_depsgraph_get()
             captured[frame] = capture(scene, one_sample)
             names = {role: passes.PASS_NAMES[role][0]
-                     for role in ("depth", "aov_distance", "aov_object", "aov_local")}
+                     for role in ("depth", "denoising_normal", "aov_distance", "aov_object",
+                                  "aov_local")}
             geometry[frame] = pipeline.SequenceCapture._geometry(
                 captured[frame], names, motion.scene_camera(scene, depsgraph),
                 motion.object_transforms(depsgraph))

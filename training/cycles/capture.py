@@ -36,7 +36,9 @@ from affinity_denoiser.overrides import Overrides
 #: Raised whenever the extension's capture path changes what it gives the core, so that
 #: sequences captured before can be found and their inputs refreshed (``refresh_inputs``).
 #: 2: the capture animates Cycles' seed whatever the scene's setting.
-CAPTURE_VERSION = 2
+#: 3: pixels whose first sample scattered in a volume take their depth from a later sample,
+#: and the validity test allows for the depth's change across a pixel (motion.py).
+CAPTURE_VERSION = 3
 
 #: Added to the scene's seed for the k-th target render (k = 1, 2): far from any seed a
 #: sequence's own frames use, so the target's samples share nothing with the input's.
