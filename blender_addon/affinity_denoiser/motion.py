@@ -166,7 +166,7 @@ def depth_slope(depth: np.ndarray, miss: np.ndarray) -> np.ndarray:
     up to this much, more than DEPTH_TOLERANCE.
     """
     values = np.where(miss, np.nan, depth.astype(np.float64))
-    padded = np.pad(values, 1, mode="edge")
+    padded = np.pad(values, 1, constant_values=np.nan)  # a border pixel has one side
     slope = np.zeros(depth.shape)
     for before, after in ((padded[1:-1, :-2], padded[1:-1, 2:]), (padded[:-2, 1:-1], padded[2:, 1:-1])):
         change = np.fmin(np.abs(values - before), np.abs(values - after))

@@ -420,3 +420,16 @@ def test_object_keys_match_the_object_info_random_value(tmp_path: Any) -> None:
     world = np.einsum("nij,nj->ni", table.matrices[index][:, :3, :3], local)
     world += table.matrices[index][:, :3, 3]
     assert np.abs(world - captured["Position"][..., :3][hit]).max() < 1e-5
+
+
+def test_depth_slope_follows_a_ramp_and_ignores_edges() -> None:
+    """On a plane whose depth grows 0.3 per column and 0.1 per row the slope is 0.4 everywhere;
+    a step of 5 in depth does not widen it on either side, nor does a miss."""
+    rows, cols = np.mgrid[0:6, 0:8]
+    depth = 2.0 + 0.3 * cols + 0.1 * rows
+    depth[:, 4:] += 5.0
+    depth[0, 0] = 1.0e10
+    miss = depth >= motion.MISS_DEPTH
+    slope = motion.depth_slope(depth, miss)
+    assert np.allclose(slope[~miss], 0.4)
+    assert slope[0, 0] == 0.0
