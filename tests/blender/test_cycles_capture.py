@@ -118,6 +118,11 @@ def test_refreshed_inputs_keep_the_targets_and_blenders_frames(
         # (3-10 % of the radiance values in two runs).
         np.testing.assert_array_equal(frame["samples"][..., 6:], before["samples"][..., 6:])
         assert frame["info"]["frame_index"] == before["info"]["frame_index"]
+    # A refresh stopped between its two renames: the sequence only in .old-*, put back whole.
+    os.replace(old, old + ".old-123")
+    assert make_data.restore_interrupted_refresh(old)
+    assert make_data.capture_version(old) == 1 and not os.path.exists(old + ".old-123")
+    assert not make_data.restore_interrupted_refresh(old)  # nothing to put back
 
 
 def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blender(

@@ -82,7 +82,7 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
     if os.path.isdir(folder):
         summary = capture.refresh_inputs(scene, temporary, folder, settings)
         # Two renames: a stop between them leaves the complete old sequence in .old-*, which
-        # the next run deletes and renders again.
+        # the next run puts back (restore_interrupted_refresh, in main) and refreshes again.
         old = folder + f".old-{os.getpid()}"
         os.replace(folder, old)
         os.replace(temporary, folder)
@@ -94,6 +94,18 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
     seconds = summary["seconds"]
     print(f"{split} cycles_{seed:05d} ({kind}) done: input {seconds['input']:.1f} s, "
           f"targets {seconds['targets']:.1f} s", flush=True)
+
+
+def restore_interrupted_refresh(folder: str) -> bool:
+    """Puts back a complete sequence that a refresh stopped between its two renames left in
+    ``folder``.old-*: its targets took far longer to render than its inputs. True if it did."""
+    if os.path.isdir(folder):
+        return False
+    for old in sorted(glob.glob(glob.escape(folder) + ".old-*")):
+        if capture_version(old) is not None:
+            os.replace(old, folder)
+            return True
+    return False
 
 
 def capture_version(folder: str) -> int | None:
@@ -131,6 +143,9 @@ def main(argv: list[str] | None = None) -> int:
     jobs = [("val", s) for s in args.val_seeds] + [("train", s) for s in args.train_seeds]
     todo = [(split, seed, os.path.join(args.out, split, f"cycles_{seed:05d}"))
             for split, seed in jobs]
+    for job in todo:
+        if restore_interrupted_refresh(job[2]):
+            print(f"make_data: {job[2]} put back from a stopped refresh", flush=True)
     versions = {job[2]: capture_version(job[2]) for job in todo}
     stale = [job for job in todo if versions[job[2]] not in (None, capture.CAPTURE_VERSION)]
     todo = [job for job in todo if versions[job[2]] is None or (args.refresh_inputs and job in stale)]
