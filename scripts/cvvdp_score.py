@@ -9,7 +9,10 @@ display: linear radiance tone-mapped by x / (1 + x), encoded with gamma 1/2.2, o
 `standard_fhd` display model at 24 frames per second. It needs PyTorch from PyPI
 (`scripts/setup_cvvdp.sh` makes `.venv-cvvdp`); Debian's python3-torch fails inside it.
 Writes a CSV row per (sequence, method, spp) and prints the means per method and spp as a
-markdown table (also written beside the CSV as .md).
+markdown table (also written beside the CSV as .md). With ``--reference-halves DATA`` the table
+is followed by each sequence's reference noise in the same units: one half of its reference
+(``DATA/val/<sequence>/reference_halves.npz``, made by training/cycles/make_data.py) scored
+against the other.
 """
 
 from __future__ import annotations
@@ -39,6 +42,8 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("frames", type=pathlib.Path, help="the --save-outputs folder of a benchmark run")
     parser.add_argument("--out", type=pathlib.Path, required=True, help="CSV to write")
+    parser.add_argument("--reference-halves", type=pathlib.Path, metavar="DATA",
+                        help="also score each sequence's reference halves against each other")
     args = parser.parse_args(argv)
     import pycvvdp
     import torch
@@ -82,10 +87,34 @@ def main(argv: list[str] | None = None) -> int:
     for method in methods:
         cells = [f"{np.mean(means[(method, c)]):.2f}" if (method, c) in means else "" for c in counts]
         lines.append(f"| `{method}` | " + " | ".join(cells) + " |")
+    if args.reference_halves is not None:
+        lines += reference_noise(metric, [folder.name for folder in sequences], args.reference_halves)
     text = "\n".join(lines) + "\n"
     args.out.with_suffix(".md").write_text(text)
     print(text)
     return 0
+
+
+def reference_noise(metric: object, names: list[str], data: pathlib.Path) -> list[str]:
+    """Markdown lines: per sequence, ColorVideoVDP of its reference's half b against half a."""
+    import torch
+
+    lines = ["", "Reference noise: half b of each reference scored against half a (each half has "
+             "half the reference's samples, so twice its variance)", "",
+             "| sequence | JOD |", "|---|---:|"]
+    for name in names:
+        halves_file = data / "val" / name / "reference_halves.npz"
+        if not halves_file.is_file():
+            raise SystemExit(f"cvvdp_score: {halves_file} is missing")
+        halves = np.load(halves_file)
+        count = sum(1 for key in halves.files if key.startswith("a_frame"))
+        a, b = (display_encoded(np.stack([halves[f"{half}_frame{i}"] for i in range(count)]))
+                for half in "ab")
+        jod, _ = metric.predict(torch.from_numpy(b), torch.from_numpy(a), dim_order="FHWC",
+                                frames_per_second=FPS)
+        lines.append(f"| {name} | {float(jod):.2f} |")
+        print(f"{name} reference half b against half a: {float(jod):.3f} JOD", flush=True)
+    return lines
 
 
 if __name__ == "__main__":
