@@ -347,6 +347,32 @@ def test_motion_blur_keeps_object_motion(tmp_path: Any) -> None:
     assert valid[mover].mean() > 0.8
 
 
+@pytest.mark.parametrize("camera_type", ["PERSP", "ORTHO"])
+def test_view_distance_made_planar_is_the_z_pass(camera_type: str, tmp_path: Any) -> None:
+    """A sample's View Distance AOV, made planar, equals its Z pass: how a later sample gives its
+    depth to a pixel whose first sample scattered in fog."""
+    scene = build_scene(False, tmp_path)
+    scene.camera.data.type = camera_type
+    scene.camera.data.ortho_scale = 8.0
+    layer = scene.view_layers[0]
+
+    def one_sample(s: Any) -> None:
+        s.cycles.samples = 1
+        layer.use_pass_z = True
+
+    with passes.shader_aovs(layer), materials.surface_aovs(bpy.data):
+        scene.frame_set(2)
+        captured = capture(scene, one_sample)
+        camera = motion.scene_camera(scene, bpy.context.evaluated_depsgraph_get())
+    depth, distance = captured["Depth"][..., 0], captured[passes.AOV_DISTANCE][..., 0]
+    both = (distance > 0) & (depth < motion.MISS_DEPTH)
+    assert both.mean() > 0.2
+    planar = motion.depth_from_distance(camera, distance)
+    # Within 1e-3: the conversion takes the pixel centre's ray, the sample was jittered in it.
+    np.testing.assert_allclose(planar[both], depth[both], rtol=1e-3)
+    assert np.abs(distance[both] / depth[both] - 1.0).max() > 1e-3  # the conversion matters
+
+
 def test_shared_keys_fall_back_to_camera_motion() -> None:
     """Two objects whose Object Info Random coincide cannot be told apart: their pixels keep
     the camera-only motion."""
