@@ -125,6 +125,41 @@ def test_refreshed_inputs_keep_the_targets_and_blenders_frames(
     assert not make_data.restore_interrupted_refresh(old)  # nothing to put back
 
 
+def test_deepened_references_average_more_independent_samples(
+        captured: tuple[str, dict], tmp_path: Any) -> None:
+    """make_data --deepen-references: each reference half gets 64 more samples (64 -> 128), from
+    seeds no target used; the inputs and Blender's frames stay as they were."""
+    import affinity_core
+    from affinity_core import metrics
+
+    folder, summary = captured
+    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
+                                      kind="interior")
+    scene.cycles.seed = SEED
+    with pytest.raises(ValueError, match="already has 64 samples per reference half"):
+        capture.deepen_references(scene, str(tmp_path / "fewer"), folder, 64)
+    deeper = str(tmp_path / "deeper")
+    new_summary = capture.deepen_references(scene, deeper, folder, 128)
+    assert new_summary["reference_spp"] == 256 and new_summary["target_seeds_used"] == 4
+    with open(os.path.join(folder, "blender_oidn.npz"), "rb") as a, \
+            open(os.path.join(deeper, "blender_oidn.npz"), "rb") as b:
+        assert a.read() == b.read()
+    old_halves = np.load(os.path.join(folder, "reference_halves.npz"))
+    halves = np.load(os.path.join(deeper, "reference_halves.npz"))
+    for index, (path, old_path) in enumerate(zip(affinity_core.list_frame_files(deeper),
+                                                 affinity_core.list_frame_files(folder))):
+        frame, before = affinity_core.read_frame(path), affinity_core.read_frame(old_path)
+        np.testing.assert_array_equal(frame["samples"], before["samples"])
+        a, b = halves[f"a_frame{index}"], halves[f"b_frame{index}"]
+        np.testing.assert_allclose(frame["reference"], (a + b) / 2, rtol=1e-6)
+        assert frame["info"]["reference_spp"] == 256
+        # Each half holds its old 64 samples and 64 new ones, which are not the other half's.
+        assert not np.array_equal(a, old_halves[f"a_frame{index}"])
+        assert metrics.smape(a, b) > 0.0
+    # Twice the samples per half: the halves disagree less in every frame.
+    assert all(new < old for new, old in zip(new_summary["target_half_smape"], summary["target_half_smape"]))
+
+
 def test_the_built_in_model_beats_the_noisy_input_and_keeps_its_margin_to_blender(
         captured: tuple[str, dict]) -> None:
     import affinity_core

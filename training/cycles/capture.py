@@ -183,6 +183,55 @@ def refresh_inputs(scene: Any, folder: str, old_folder: str, settings: CaptureSe
     return summary
 
 
+def deepen_references(scene: Any, folder: str, old_folder: str, half_spp: int,
+                      progress: Callable[[str], None] = lambda text: None) -> dict[str, Any]:
+    """Adds samples to both reference halves of ``old_folder``, a complete validation sequence
+    of ``scene``, until each half has ``half_spp``, and writes the sequence with the new
+    references into ``folder`` (created; must not hold frames yet). The new samples come from
+    renders with seeds no earlier target used, so the halves stay independent; the inputs and
+    Blender's frames are copied unchanged. Returns the updated summary, also written to
+    render_summary.json."""
+    import affinity_core
+    from affinity_core import metrics
+
+    with open(os.path.join(old_folder, "render_summary.json")) as handle:
+        summary = json.load(handle)
+    if summary.get("target_renders") != 2:
+        raise ValueError(f"{old_folder} has no reference halves (not a validation sequence)")
+    have = int(summary["reference_spp"]) // 2
+    if half_spp <= have:
+        raise ValueError(f"{old_folder} already has {have} samples per reference half, not fewer than {half_spp}")
+    extra = half_spp - have
+    seeds_used = int(summary.get("target_seeds_used", 2))  # seeds base + k * stride, k = 1..used
+    os.makedirs(folder, exist_ok=True)
+    if affinity_core.list_frame_files(folder):
+        raise FileExistsError(f"{folder} already holds frame files")
+    halves = dict(np.load(os.path.join(old_folder, "reference_halves.npz")))
+    base_seed = int(summary["seed"])
+    seconds_total, noise = 0.0, []
+    for index, path in enumerate(affinity_core.list_frame_files(old_folder)):
+        scene.frame_set(scene.frame_start + index)
+        progress(f"references, frame {scene.frame_start + index}")
+        for k, half in enumerate("ab", start=seeds_used + 1):
+            image, seconds = render_combined(scene, extra, base_seed + k * TARGET_SEED_STRIDE, denoise=False)
+            seconds_total += seconds
+            key = f"{half}_frame{index}"
+            halves[key] = ((halves[key] * have + image * extra) / half_spp).astype(np.float32)
+        a, b = halves[f"a_frame{index}"], halves[f"b_frame{index}"]
+        noise.append(metrics.smape(a, b))
+        frame = affinity_core.read_frame(path)
+        frame["reference"] = ((a + b) / 2).astype(np.float32)
+        frame["info"]["reference_spp"] = 2 * half_spp
+        affinity_core.write_frame(os.path.join(folder, os.path.basename(path)), frame)
+    np.savez_compressed(os.path.join(folder, "reference_halves.npz"), **halves)
+    if os.path.isfile(os.path.join(old_folder, "blender_oidn.npz")):
+        shutil.copyfile(os.path.join(old_folder, "blender_oidn.npz"), os.path.join(folder, "blender_oidn.npz"))
+    summary.update(reference_spp=2 * half_spp, target_seeds_used=seeds_used + 2, target_half_smape=noise)
+    summary["seconds"]["targets"] = summary["seconds"]["targets"] + seconds_total
+    _write_summary(folder, summary)
+    return summary
+
+
 def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
                     progress: Callable[[str], None]) -> tuple[pipeline.DenoiseRender, float]:
     """Every frame of ``scene`` (frame_start..frame_end) through the extension's capture, its

@@ -3,6 +3,7 @@
     .venv-blender/bin/python training/cycles/make_data.py [--out DIR] [--train-seeds 0-99]
         [--val-seeds 9000-9005] [--frames 8] [--train-frames 6] [--size 160x96] [--spp 8] [--train-target-spp 64]
         [--val-target-spp 256] [--blender-oidn-spp 2,4,8] [--threads 2] [--refresh-inputs]
+        [--deepen-references]
 
 Each sequence is a scene of the generator (scene_generator.py) by seed, captured by capture.py:
 ``OUT/train/cycles_NNNNN`` with one independent noisy target per frame (Noise2Noise),
@@ -60,8 +61,9 @@ def spp_list(text: str) -> tuple[int, ...]:
 
 
 def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace) -> None:
-    """Renders the sequence of ``seed`` into ``folder``, or, with ``args.refresh_inputs`` and a
-    complete ``folder`` from an older capture path, captures its inputs again."""
+    """Renders the sequence of ``seed`` into ``folder``; where ``folder`` is complete, captures
+    its inputs again (``args.refresh_inputs``) or deepens its references
+    (``args.deepen_references``, validation only)."""
     width, height = args.size
     validation = split == "val"
     frames = args.frames if validation else args.train_frames
@@ -80,7 +82,10 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
         shutil.rmtree(stale, ignore_errors=True)  # left by a stopped run
     temporary = folder + f".tmp-{os.getpid()}"
     if os.path.isdir(folder):
-        summary = capture.refresh_inputs(scene, temporary, folder, settings)
+        if validation and args.deepen_references:
+            summary = capture.deepen_references(scene, temporary, folder, args.val_target_spp)
+        else:
+            summary = capture.refresh_inputs(scene, temporary, folder, settings)
         # Two renames: a stop between them leaves the complete old sequence in .old-*, which
         # the next run puts back (restore_interrupted_refresh, in main) and refreshes again.
         old = folder + f".old-{os.getpid()}"
@@ -108,14 +113,20 @@ def restore_interrupted_refresh(folder: str) -> bool:
     return False
 
 
+def sequence_summary(folder: str) -> dict | None:
+    """A complete sequence's render_summary.json; None where the sequence is not complete."""
+    try:
+        with open(os.path.join(folder, "render_summary.json")) as handle:
+            return json.load(handle)
+    except FileNotFoundError:
+        return None
+
+
 def capture_version(folder: str) -> int | None:
     """The capture path that made a complete sequence's inputs (1: before the field existed);
     None where the sequence is not complete."""
-    try:
-        with open(os.path.join(folder, "render_summary.json")) as handle:
-            return int(json.load(handle).get("capture_version", 1))
-    except FileNotFoundError:
-        return None
+    summary = sequence_summary(folder)
+    return None if summary is None else int(summary.get("capture_version", 1))
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -135,7 +146,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--refresh-inputs", action="store_true",
                         help="capture again the inputs of sequences made by an older capture path "
                              "(capture.CAPTURE_VERSION), keeping their targets and Blender's frames")
+    parser.add_argument("--deepen-references", action="store_true",
+                        help="add samples to the reference halves of complete validation sequences "
+                             "until each half has --val-target-spp, keeping their inputs")
     args = parser.parse_args(argv)
+    if args.deepen_references and args.refresh_inputs:
+        parser.error("--deepen-references and --refresh-inputs are separate runs")
     if min(args.frames, args.train_frames) < 2:
         parser.error("--frames and --train-frames must be at least 2 (motion needs a previous frame)")
 
@@ -148,7 +164,9 @@ def main(argv: list[str] | None = None) -> int:
             print(f"make_data: {job[2]} put back from a stopped refresh", flush=True)
     versions = {job[2]: capture_version(job[2]) for job in todo}
     stale = [job for job in todo if versions[job[2]] not in (None, capture.CAPTURE_VERSION)]
-    todo = [job for job in todo if versions[job[2]] is None or (args.refresh_inputs and job in stale)]
+    todo = [job for job in todo if versions[job[2]] is None or (args.refresh_inputs and job in stale)
+            or (args.deepen_references and job[0] == "val" and versions[job[2]] is not None
+                and sequence_summary(job[2])["reference_spp"] < 2 * args.val_target_spp)]
     print(f"make_data: {len(jobs) - len(todo)} of {len(jobs)} sequences already in {args.out}",
           flush=True)
     if stale and not args.refresh_inputs:
