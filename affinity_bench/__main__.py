@@ -310,7 +310,10 @@ def results_markdown(argv: list[str], config: Config, methods: list[Method], res
         text += f"\n## Crops of the last frame, {config.chart_spp} spp\n\n"
         text += "".join(f"![crops, {n}](crops_{n}.png)\n" for n in failure_cases)
     if noise:
-        text += "\n## Reference noise\n\n" + report.reference_noise_markdown(noise, config.reference_spp)
+        second = (cycles.SECOND_REFERENCE_TEXT if config.name == "cycles" else
+                  f"A second {config.reference_spp}-spp reference of every sequence, rendered with other "
+                  "random numbers")
+        text += "\n## Reference noise\n\n" + report.reference_noise_markdown(noise, second)
     text += "\n## Per sequence\n" + report.per_scene_markdown(results, config.spp)
     return text
 

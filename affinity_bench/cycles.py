@@ -30,13 +30,18 @@ BLENDER_OIDN_TEXT = ("Blender's Cycles with its own OpenImageDenoise (albedo + n
                      "as users get it; its time is the whole render (sampling and denoising)")
 MAKE_DATA = "training/cycles/make_data.py"
 SUITE_TEXT = (
-    "Sequences: Cycles validation scenes of `training/cycles/scenes.py` (seeds never trained on), captured by "
+    "Sequences: Cycles validation scenes of `training/cycles/scene_generator.py` (seeds never trained on), captured by "
     f"`{MAKE_DATA}` through the Blender extension's own path (one-sample sub-renders, its features, motion and "
     "validity); an S-spp input is the first S sub-renders of each frame. Reference: the mean of two independent "
     "Cycles renders with other seeds (their spp in each sequence's render_summary.json; the reference noise below "
     "scores one against the other). Render time at S spp: the capture's sub-renders, feature mapping and motion "
     "of a frame scaled by S/8; "
     "`blender-oidn`'s time is Cycles rendering S samples and denoising, as one ordinary render. ")
+
+
+#: What the reference noise scores on this suite (report.reference_noise_markdown).
+SECOND_REFERENCE_TEXT = ("Half b of each sequence's reference (half its samples, the spp in its "
+                         "render_summary.json), as the second reference, with half a as the first")
 
 
 def blender_oidn_description() -> Method:

@@ -147,13 +147,13 @@ def reference_noise_rows(noise: list[SequenceResult]) -> tuple[list[str], list[l
                     for r in noise]
 
 
-def reference_noise_markdown(noise: list[SequenceResult], reference_spp: int) -> str:
-    """Per sequence and on average, the second reference's scores against the first."""
+def reference_noise_markdown(noise: list[SequenceResult], second: str) -> str:
+    """Per sequence and on average, the second reference's scores against the first. ``second``
+    says what the second reference is (a sentence without its end)."""
     columns = [(c, h, f) for c, h, f in SUMMARY_COLUMNS if c != "ms_per_mpx"]
     rows = [[r.sequence] + [f.format(r.mean(c)) for c, _, f in columns] for r in noise]
     rows.append(["**mean**"] + [f.format(float(np.mean([r.mean(c) for r in noise]))) for c, _, f in columns])
-    text = (f"A second {reference_spp}-spp reference of every sequence, rendered with other random numbers, "
-            "scored against the first exactly as a method's output is. The references are noisy too, so "
+    text = (f"{second}, scored against the first exactly as a method's output is. The references are noisy too, so "
             "every method's error includes theirs: for a perfect output, about these values divided by the "
             "square root of 2 (the errors of two independent references add in quadrature). The warping error "
             "is the second reference's own (it needs no reference): what a perfect output would score.\n\n")
