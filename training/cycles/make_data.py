@@ -87,7 +87,7 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
         else:
             summary = capture.refresh_inputs(scene, temporary, folder, settings)
         # Two renames: a stop between them leaves the complete old sequence in .old-*, which
-        # the next run puts back (restore_interrupted_refresh, in main) and refreshes again.
+        # the next run puts back (restore_interrupted_refresh, in main) and processes again.
         old = folder + f".old-{os.getpid()}"
         os.replace(folder, old)
         os.replace(temporary, folder)
