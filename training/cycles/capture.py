@@ -91,12 +91,9 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
                      progress: Callable[[str], None] = lambda text: None) -> dict[str, Any]:
     """Renders every frame of ``scene`` (frame_start..frame_end) into ``folder`` (created; must
     not hold frames yet) and returns the summary also written to render_summary.json."""
-    import affinity_core
     from affinity_core import metrics
 
-    os.makedirs(folder, exist_ok=True)
-    if affinity_core.list_frame_files(folder):
-        raise FileExistsError(f"{folder} already holds frame files")
+    _start_folder(folder)
     run, input_seconds = _capture_inputs(scene, folder, settings, progress)
     results = run.results
 
@@ -161,13 +158,10 @@ def refresh_inputs(scene: Any, folder: str, old_folder: str, settings: CaptureSe
     Returns the updated summary, also written to render_summary.json."""
     import affinity_core
 
-    with open(os.path.join(old_folder, "render_summary.json")) as handle:
-        summary = json.load(handle)
+    summary = _read_summary(old_folder)
     if summary["spp"] != settings.spp:
         raise ValueError(f"{old_folder} has {summary['spp']} samples per frame, not {settings.spp}")
-    os.makedirs(folder, exist_ok=True)
-    if affinity_core.list_frame_files(folder):
-        raise FileExistsError(f"{folder} already holds frame files")
+    _start_folder(folder)
     run, input_seconds = _capture_inputs(scene, folder, settings, progress)
     if len(run.results) != summary["frames"]:
         raise ValueError(f"{old_folder} has {summary['frames']} frames, the scene {len(run.results)}")
@@ -194,8 +188,7 @@ def deepen_references(scene: Any, folder: str, old_folder: str, half_spp: int,
     import affinity_core
     from affinity_core import metrics
 
-    with open(os.path.join(old_folder, "render_summary.json")) as handle:
-        summary = json.load(handle)
+    summary = _read_summary(old_folder)
     if summary.get("target_renders") != 2:
         raise ValueError(f"{old_folder} has no reference halves (not a validation sequence)")
     have = int(summary["reference_spp"]) // 2
@@ -203,9 +196,7 @@ def deepen_references(scene: Any, folder: str, old_folder: str, half_spp: int,
         raise ValueError(f"{old_folder} already has {have} samples per reference half, not fewer than {half_spp}")
     extra = half_spp - have
     seeds_used = int(summary.get("target_seeds_used", 2))  # seeds base + k * stride, k = 1..used
-    os.makedirs(folder, exist_ok=True)
-    if affinity_core.list_frame_files(folder):
-        raise FileExistsError(f"{folder} already holds frame files")
+    _start_folder(folder)
     halves = dict(np.load(os.path.join(old_folder, "reference_halves.npz")))
     base_seed = int(summary["seed"])
     seconds_total, noise = 0.0, []
@@ -280,6 +271,20 @@ def _input_seconds(run: pipeline.DenoiseRender) -> dict[str, float]:
         "motion": float(np.sum(timings.motion)),
         "denoise": float(np.sum(timings.denoise)),
     }
+
+
+def _start_folder(folder: str) -> None:
+    """Creates the folder a sequence is written into, refusing one that already holds frames."""
+    import affinity_core
+
+    os.makedirs(folder, exist_ok=True)
+    if affinity_core.list_frame_files(folder):
+        raise FileExistsError(f"{folder} already holds frame files")
+
+
+def _read_summary(folder: str) -> dict[str, Any]:
+    with open(os.path.join(folder, "render_summary.json")) as handle:
+        return json.load(handle)
 
 
 def _write_summary(folder: str, summary: dict[str, Any]) -> None:
