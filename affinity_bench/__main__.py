@@ -157,7 +157,7 @@ def evaluate_cycles_sequence(data: pathlib.Path, seed: int, methods: list[Method
     equal_time = tuple(s for s in config.equal_time_spp if s <= sequence.render_spp)
     results = evaluate_sequence(name, False, sequence.frames, sequence.noisy_seconds_per_frame,
                                 sequence.render_spp, everything, config.spp, equal_time,
-                                config.chart_spp, config.timing_runs, keep_outputs)
+                                config.chart_spp, config.timing_runs, keep_outputs, sequence.preroll)
     for result in results:
         if result.method == cycles.BLENDER_OIDN:
             result.render_seconds_per_frame = sequence.blender_oidn_seconds(result.spp)

@@ -8,6 +8,8 @@ as ``blender_oidn.npz``. Its time is that whole render (sampling and denoising),
 render time; the other methods' render time is the capture path's one-sample sub-renders.
 The reference is the mean of two independent target renders with other seeds than the input;
 ``reference_halves.npz`` holds both, and one scored against the other is the reference noise.
+``preroll.npz`` holds the extension's pre-roll of the first frame, which the ``+preroll``
+method denoises before it, as the extension does.
 """
 
 from __future__ import annotations
@@ -70,6 +72,12 @@ class CyclesSequence:
         self.frames = [affinity_core.read_frame(path) for path in affinity_core.list_frame_files(folder)]
         oidn_file = folder / "blender_oidn.npz"
         self.blender_oidn = dict(np.load(oidn_file)) if oidn_file.is_file() else {}
+        #: The extension's pre-roll of the first frame, as capture.py keeps it; None without.
+        self.preroll: list[np.ndarray] | None = None
+        preroll_file = folder / "preroll.npz"
+        if preroll_file.is_file():
+            with np.load(preroll_file) as groups:
+                self.preroll = [groups[f"group{g}"] for g in range(1, len(groups.files) + 1)]
 
     @property
     def render_spp(self) -> int:

@@ -11,7 +11,7 @@ import numpy as np
 
 from affinity_core import metrics
 
-from .data import spare_samples, with_spp
+from .data import preroll_groups, with_spp
 from .methods import Method, PrerollRunner
 
 #: Metrics of a frame against the frame before: NaN on the first frame, left out of the means.
@@ -67,16 +67,16 @@ class SequenceResult:
 
 
 def run_once(method: Method, inputs: list[dict[str, Any]],
-             spare: np.ndarray | None = None) -> tuple[list[np.ndarray], list[float]]:
+             preroll: list[np.ndarray] | None = None) -> tuple[list[np.ndarray], list[float]]:
     """The sequence in order through a fresh runner: the outputs and the wall time of each call.
-    A runner with a pre-roll (methods.PrerollRunner) gets the first frame's spare samples
-    first, timed with the first frame."""
+    A runner with a pre-roll (methods.PrerollRunner) gets the pre-roll's sample groups
+    (data.preroll_groups) first, timed with the first frame."""
     runner = method.start()
     outputs, seconds = [], []
     for t, frame in enumerate(inputs):
         start = time.perf_counter()
-        if t == 0 and spare is not None and isinstance(runner, PrerollRunner):
-            runner.preroll(frame, spare)
+        if t == 0 and preroll is not None and isinstance(runner, PrerollRunner):
+            runner.preroll(frame, preroll)
         output = runner(frame)
         seconds.append(time.perf_counter() - start)
         outputs.append(np.asarray(output, np.float32))
@@ -84,16 +84,16 @@ def run_once(method: Method, inputs: list[dict[str, Any]],
 
 
 def run_methods(methods: list[Method], inputs: list[dict[str, Any]], runs: int,
-                spare: np.ndarray | None = None) -> dict[str, tuple[list[np.ndarray], list[float]]]:
+                preroll: list[np.ndarray] | None = None) -> dict[str, tuple[list[np.ndarray], list[float]]]:
     """Each method's outputs (of its first run) and, per frame, its fastest call over `runs`
     runs. The runs go round-robin over the methods, so a burst of other work on a shared
     machine slows at most one run of a method rather than all of them; the methods are
     deterministic, so only the timings differ between runs."""
-    results = {m.label: run_once(m, inputs, spare) for m in methods}
+    results = {m.label: run_once(m, inputs, preroll) for m in methods}
     for _ in range(runs - 1):
         for method in methods:
             outputs, fastest = results[method.label]
-            _, seconds = run_once(method, inputs, spare)
+            _, seconds = run_once(method, inputs, preroll)
             results[method.label] = (outputs, [min(a, b) for a, b in zip(fastest, seconds)])
     return results
 
@@ -129,18 +129,20 @@ def reference_noise(name: str, failure_case: bool, frames: list[dict[str, Any]],
 def evaluate_sequence(name: str, failure_case: bool, frames: list[dict[str, Any]], noisy_seconds: float,
                       render_spp: int, methods: list[Method], spp: tuple[int, ...],
                       equal_time_spp: tuple[int, ...], keep_last_at: int, timing_runs: int,
-                      keep_outputs: bool = False) -> list[SequenceResult]:
+                      keep_outputs: bool = False,
+                      captured_preroll: list[np.ndarray] | None = None) -> list[SequenceResult]:
     """All methods at the main sample counts, plus noisy and OIDN at the equal-time ones.
 
     `noisy_seconds` is the noisy render's time per frame at `render_spp`; `keep_last_at` is the
     sample count whose last output is kept (for the crops); `timing_runs` as in run_methods;
-    `keep_outputs` keeps every output frame in the results (to be saved for video metrics)."""
+    `keep_outputs` keeps every output frame in the results (to be saved for video metrics);
+    `captured_preroll` the extension's pre-roll frames where the sequence holds them."""
     height, width = frames[0]["reference"].shape[:2]
     results = []
     for count in sorted(set(spp) | set(equal_time_spp)):
         inputs = [with_spp(frame, count) for frame in frames]
         active = [m for m in methods if count in spp or m.label in EQUAL_TIME_METHODS]
-        runs = run_methods(active, inputs, timing_runs, spare_samples(frames[0], count))
+        runs = run_methods(active, inputs, timing_runs, preroll_groups(frames[0], count, captured_preroll))
         for method in active:
             outputs, seconds = runs[method.label]
             result = SequenceResult(method.label, method.family, name, failure_case, count, width, height,

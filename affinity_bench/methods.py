@@ -85,23 +85,20 @@ PREROLL_FRAMES = 2
 
 
 class PrerollRunner:
-    """The extension's pre-roll: before the first frame, `preroll` denoises that frame's spare
-    samples, in groups of S, as frames of a still camera (output unused), so the first frame
+    """The extension's pre-roll: before the first frame, `preroll` denoises groups of S samples
+    of it (data.preroll_groups) as frames of a still camera (output unused), so the first frame
     starts with a history; at most PREROLL_FRAMES groups, fewer where the data holds fewer."""
 
     def __init__(self, model: affinity_core.Model) -> None:
         self.denoiser = affinity_core.Denoiser(model)
         self.prerolled = False
 
-    def preroll(self, first: dict[str, Any], spare: np.ndarray) -> None:
-        spp = first["samples"].shape[2]
-        groups = min(PREROLL_FRAMES, spare.shape[2] // spp)
+    def preroll(self, first: dict[str, Any], groups: list[np.ndarray]) -> None:
         still = np.zeros_like(first["motion"])
-        for group in range(groups):
-            samples = np.ascontiguousarray(spare[:, :, group * spp:(group + 1) * spp])
-            valid = np.full_like(first["valid"], 1.0 if group > 0 else 0.0)
+        for index, samples in enumerate(groups[:PREROLL_FRAMES]):
+            valid = np.full_like(first["valid"], 1.0 if index > 0 else 0.0)
             self.denoiser.denoise(dict(first, samples=samples, motion=still, valid=valid))
-        self.prerolled = groups > 0
+        self.prerolled = bool(groups)
 
     def __call__(self, frame: dict[str, Any]) -> np.ndarray:
         if self.prerolled:  # the frame before was this one, from the same camera
@@ -135,9 +132,11 @@ def make_methods(models: list[tuple[str, str]]) -> list[Method]:
         label, path, model = loaded[0]
         methods.append(Method(f"ours-{label}+preroll", "ours",
                               f"model {label} with the Blender extension's pre-roll: before the first frame, "
-                              f"up to {PREROLL_FRAMES} groups of its spare samples denoised as a still camera "
-                              "(2 at 2 spp, 1 at 4, none at 8 with 8-sample data; costs that many frames' "
-                              "samples once per sequence)", lambda: PrerollRunner(model)))
+                              f"{PREROLL_FRAMES} frames of S samples denoised as a still camera: the "
+                              "extension's own pre-roll where the sequence holds it (Cycles suite), else "
+                              "the first frame's spare samples (2 groups at 2 spp, 1 at 4, none at 8 with "
+                              "8-sample data); costs that many frames' samples once per sequence",
+                              lambda: PrerollRunner(model)))
         for ablation in ABLATIONS:
             methods.append(Method(f"{label}-{ablation}", "ablation",
                                   f"model {label} with ablation={ablation!r}", _ours(model, ablation)))

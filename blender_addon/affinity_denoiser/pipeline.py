@@ -123,6 +123,8 @@ class DenoisedFrame:
     mean: dict[str, np.ndarray]  # every captured pass: the samples' mean (FIRST_SAMPLE_PASSES: sample 0)
     frame_data: dict[str, Any]  # the core's input (its samples None when they were streamed)
     report: dict[str, Any]  # the denoiser's report of the frame
+    #: The core's input for each pre-roll frame before this one, where frames are kept.
+    preroll_data: list[dict[str, Any]] = field(default_factory=list)
 
 
 @dataclass
@@ -135,6 +137,7 @@ class FrameResult:
     denoised: np.ndarray  # (H, W, 3)
     denoiser_report: dict[str, Any]
     frame_data: dict[str, Any] | None = None  # the core's input, kept when keep_frames is set
+    preroll_data: list[dict[str, Any]] = field(default_factory=list)  # likewise, its pre-roll's
 
 
 @dataclass
@@ -250,8 +253,9 @@ class SequenceCapture:
         if stream and denoiser.pending_samples:
             denoiser.discard_samples()  # left by an interrupted frame
         prerolled = self.settings.temporal and self.last_frame is None and self.settings.preroll_frames > 0
+        preroll_data = []
         if prerolled:
-            yield from self._preroll(frame, camera, ray_start, stream, before_sample)
+            preroll_data = yield from self._preroll(frame, camera, ray_start, stream, before_sample)
         samples = None if stream else self._sample_buffer(camera)
         radiance = np.zeros((camera.height, camera.width, 3), np.float32)
         streaming_seconds = 0.0  # the denoiser's share of the sample loop
@@ -317,27 +321,33 @@ class SequenceCapture:
         alpha = mean[combined_name][..., 3:4] if combined_name in mean else np.ones_like(noisy[..., :1])
         rgba = np.concatenate([denoised, alpha], axis=-1)
         return DenoisedFrame(frame, rgba, noisy, mean, frame_data,
-                             dict(getattr(denoiser, "last_report", {})))
+                             dict(getattr(denoiser, "last_report", {})),
+                             preroll_data if self.keep_frames else [])
 
     def _preroll(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
-                 before_sample: Callable[[int], None] | None) -> Generator[int, None, None]:
+                 before_sample: Callable[[int], None] | None) -> Generator[int, None, list[dict[str, Any]]]:
         """Renders ``frame`` preroll_frames more times, each with another seed (independent
         samples), and denoises each as a frame of a still camera, the output unused: the frame
         proper then starts with a history (DEFAULT_PREROLL_FRAMES). Yields 0 after each
-        sub-render (none of the frame's own samples is done yet). Another seed, not sample
+        sub-render (none of the frame's own samples is done yet); returns the pre-roll frames'
+        input to the core (their samples None where they were streamed). Another seed, not sample
         offsets past S: a larger sample set changes which samples the first S are, and on
         Blender 5.3 made them far noisier (docs/BLENDER.md, "Pre-roll")."""
         cycles = self.scene.cycles
         seed = cycles.seed
+        frames = []
         try:
             for group in range(1, self.settings.preroll_frames + 1):
                 cycles.seed = (seed + PREROLL_SEED_STEP * group) % 2**31
-                yield from self._preroll_frame(frame, camera, ray_start, stream, before_sample, group)
+                frames.append((yield from self._preroll_frame(frame, camera, ray_start, stream,
+                                                              before_sample, group)))
         finally:
             cycles.seed = seed
+        return frames
 
     def _preroll_frame(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
-                       before_sample: Callable[[int], None] | None, group: int) -> Generator[int, None, None]:
+                       before_sample: Callable[[int], None] | None,
+                       group: int) -> Generator[int, None, dict[str, Any]]:
         spp, denoiser = self.settings.samples_per_frame, self.denoiser
         still = np.zeros((camera.height, camera.width, 2), np.float32)
         samples = None if stream else self._sample_buffer(camera)
@@ -357,6 +367,7 @@ class SequenceCapture:
         start = time.perf_counter()
         self._denoise(frame_data)
         self.timings.denoise.append(time.perf_counter() - start)
+        return frame_data
 
     def _sample_buffer(self, camera: motion.Camera) -> np.ndarray:
         """Room for a frame's per-sample features where they are kept, not streamed."""
@@ -555,4 +566,5 @@ class DenoiseRender:
 
         self.results.append(FrameResult(frame, denoised_path, final_path, sample_frame_path,
                                         denoised.noisy, rgba[..., :3], denoised.report,
-                                        denoised.frame_data if self.keep_frames else None))
+                                        denoised.frame_data if self.keep_frames else None,
+                                        denoised.preroll_data))

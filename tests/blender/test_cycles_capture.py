@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import os
+import pathlib
 import shutil
 import sys
 from typing import Any
@@ -23,7 +24,7 @@ pytestmark = pytest.mark.skipif(not CORE_AVAILABLE, reason="needs the affinity c
 
 #: A fixed tiny sequence: an interior (indirect light, a small bright bulb), 4 frames.
 SEED, WIDTH, HEIGHT, FRAMES = 7, 64, 40, 4
-SETTINGS = capture.CaptureSettings(spp=4, target_spp=64, targets=2, blender_oidn_spp=(4,))
+SETTINGS = capture.CaptureSettings(spp=4, target_spp=64, targets=2, blender_oidn_spp=(4,), preroll_frames=2)
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +43,7 @@ def test_a_captured_sequence_has_every_file_and_frame(captured: tuple[str, dict]
     files = affinity_core.list_frame_files(folder)
     assert [os.path.basename(f) for f in files] == [f"frame_{i:04d}.exr" for i in range(FRAMES)]
     assert sorted(os.listdir(folder)) == sorted(
-        [os.path.basename(f) for f in files] + ["blender_oidn.npz", "reference_halves.npz",
+        [os.path.basename(f) for f in files] + ["blender_oidn.npz", "preroll.npz", "reference_halves.npz",
                                                 "render_summary.json"])
     with open(os.path.join(folder, "render_summary.json")) as handle:
         assert json.load(handle) == json.loads(json.dumps(summary))
@@ -78,6 +79,90 @@ def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[st
         assert abs((a / (1 + a)).mean() / (b / (1 + b)).mean() - 1) < 0.05
 
 
+def test_the_preroll_is_the_extensions_own(captured: tuple[str, dict]) -> None:
+    """preroll.npz: the extension's pre-roll frames of the first frame, each from its own seed:
+    the first s samples of one are what the extension gives the core at s samples per frame."""
+    import affinity_core
+    from affinity_denoiser import pipeline
+
+    folder, summary = captured
+    assert summary["preroll_frames"] == 2 and summary["seconds"]["preroll"] > 0
+    groups = np.load(os.path.join(folder, "preroll.npz"))
+    assert sorted(groups.files) == ["group1", "group2"]
+    first = affinity_core.read_frame(affinity_core.list_frame_files(folder)[0])
+    own = first["samples"]
+    for name in groups.files:
+        assert groups[name].shape == own.shape and np.isfinite(groups[name]).all()
+    # Other seeds: other radiance than the frame's own samples and each other's, the same
+    # light on average (tone-mapped, so that a firefly cannot swing the mean).
+    def radiance(samples: np.ndarray) -> np.ndarray:
+        return samples[..., 0:3] + samples[..., 3:6]
+    assert not np.array_equal(radiance(groups["group1"]), radiance(own))
+    assert not np.array_equal(radiance(groups["group1"]), radiance(groups["group2"]))
+    def tone_mapped_light(samples: np.ndarray) -> float:
+        light = radiance(samples).mean(2)
+        return float((light / (1 + light)).mean())
+    for name in groups.files:
+        print(name, tone_mapped_light(groups[name]), tone_mapped_light(own))
+        assert abs(tone_mapped_light(groups[name]) / tone_mapped_light(own) - 1) < 0.1
+
+    # The extension at 2 samples per frame with one pre-roll frame renders group1's first two.
+    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
+                                      kind="interior")
+    scene.cycles.seed = SEED
+    run = pipeline.DenoiseRender(scene, scene.view_layers[0], [scene.frame_start],
+                                 pipeline.Settings(samples_per_frame=2, preroll_frames=1,
+                                                   output_folder=os.path.join(folder, "..", "preroll_check")))
+    run.keep_frames = True
+    run.run()
+    (extension,) = run.results[0].preroll_data
+    np.testing.assert_array_equal(extension["samples"][..., 6:], groups["group1"][:, :, :2, 6:])
+
+    def same_light(a: np.ndarray, b: np.ndarray) -> float:
+        """The share of lit values that are equal. Not all: another render of the same
+        samples differs in part of its light sampling (0.58 equal here on bpy 5.0.1, with the
+        same sample positions, as the geometry above shows; another seed 0.04)."""
+        lit = (radiance(a) != 0) | (radiance(b) != 0)
+        return float((radiance(a) == radiance(b))[lit].mean())
+    assert same_light(extension["samples"], groups["group1"][:, :, :2]) > 0.4
+    assert same_light(extension["samples"], groups["group2"][:, :, :2]) < 0.15
+
+
+def test_make_data_adds_a_missing_preroll_and_keeps_the_rest(captured: tuple[str, dict], tmp_path: Any) -> None:
+    """A validation sequence captured before pre-rolls were kept gets preroll.npz added in
+    place; its frames, references and Blender's frames are not touched."""
+    import argparse
+
+    import make_data
+
+    folder, summary = captured
+    summary = json.loads(json.dumps(summary))  # the fixture's stays as it is
+    old = str(tmp_path / "old")
+    shutil.copytree(folder, old)
+    os.remove(os.path.join(old, "preroll.npz"))
+    del summary["preroll_frames"], summary["seconds"]["preroll"]
+    with open(os.path.join(old, "render_summary.json"), "w") as handle:
+        json.dump(summary, handle)
+    args = argparse.Namespace(preroll_frames=2)
+    assert make_data.missing_preroll("val", old, args)
+    assert not make_data.missing_preroll("train", old, args)
+    assert not make_data.missing_preroll("val", folder, args)
+    before = {name: pathlib.Path(old, name).read_bytes() for name in os.listdir(old)}
+    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
+                                      kind="interior")
+    scene.cycles.seed = SEED
+    with pytest.raises(ValueError, match="has 4 samples per frame, not 2"):
+        capture.add_preroll(scene, old, capture.CaptureSettings(spp=2, preroll_frames=2))
+    new_summary = capture.add_preroll(scene, old, SETTINGS)
+    assert not make_data.missing_preroll("val", old, args)
+    assert new_summary["preroll_frames"] == 2
+    assert sorted(os.listdir(old)) == sorted(list(before) + ["preroll.npz"])
+    for name, content in before.items():
+        if name != "render_summary.json":
+            assert pathlib.Path(old, name).read_bytes() == content
+    assert np.load(os.path.join(old, "preroll.npz"))["group1"].shape == (HEIGHT, WIDTH, 4, 18)
+
+
 def test_refreshed_inputs_keep_the_targets_and_blenders_frames(
         captured: tuple[str, dict], tmp_path: Any) -> None:
     """make_data --refresh-inputs: a sequence of an older capture path gets its inputs captured
@@ -108,6 +193,10 @@ def test_refreshed_inputs_keep_the_targets_and_blenders_frames(
     for name in ("blender_oidn.npz", "reference_halves.npz"):
         with open(os.path.join(old, name), "rb") as a, open(os.path.join(refreshed, name), "rb") as b:
             assert a.read() == b.read()
+    # The pre-roll is an input: captured again, with the same geometry.
+    assert new_summary["preroll_frames"] == 2
+    before, after = np.load(os.path.join(old, "preroll.npz")), np.load(os.path.join(refreshed, "preroll.npz"))
+    np.testing.assert_array_equal(after["group2"][..., 6:], before["group2"][..., 6:])
     paths = affinity_core.list_frame_files(refreshed)
     assert len(paths) == FRAMES
     for path, old_path in zip(paths, affinity_core.list_frame_files(old)):
@@ -141,9 +230,9 @@ def test_deepened_references_average_more_independent_samples(
     deeper = str(tmp_path / "deeper")
     new_summary = capture.deepen_references(scene, deeper, folder, 128)
     assert new_summary["reference_spp"] == 256 and new_summary["target_seeds_used"] == 4
-    with open(os.path.join(folder, "blender_oidn.npz"), "rb") as a, \
-            open(os.path.join(deeper, "blender_oidn.npz"), "rb") as b:
-        assert a.read() == b.read()
+    for name in ("blender_oidn.npz", "preroll.npz"):
+        with open(os.path.join(folder, name), "rb") as a, open(os.path.join(deeper, name), "rb") as b:
+            assert a.read() == b.read()
     old_halves = np.load(os.path.join(folder, "reference_halves.npz"))
     halves = np.load(os.path.join(deeper, "reference_halves.npz"))
     for index, (path, old_path) in enumerate(zip(affinity_core.list_frame_files(deeper),

@@ -208,19 +208,36 @@ def test_the_preroll_gives_the_first_frame_a_history_from_its_spare_samples() ->
     inputs = [data.with_spp(f, 2) for f in frames]
     model = affinity_core.Model.built_in()
 
-    def run(spare: np.ndarray | None) -> list[np.ndarray]:
+    def run(groups: list[np.ndarray] | None) -> list[np.ndarray]:
         runner = methods.PrerollRunner(model)
-        if spare is not None:
-            runner.preroll(inputs[0], spare)
+        if groups is not None:
+            runner.preroll(inputs[0], groups)
         return [runner(f) for f in inputs]
 
     plain = [affinity_core.Denoiser(model).denoise(f) for f in inputs[:1]]
-    none = run(data.spare_samples(frames[0], 4))  # no sample left after 4
-    np.testing.assert_array_equal(none[0], plain[0])
-    prerolled, without = run(data.spare_samples(frames[0], 2)), run(None)
+    assert data.preroll_groups(frames[0], 4) == []  # no sample left after 4
+    np.testing.assert_array_equal(run([])[0], plain[0])
+    spare = data.preroll_groups(frames[0], 2)
+    assert len(spare) == 1
+    np.testing.assert_array_equal(spare[0], frames[0]["samples"][:, :, 2:4])
+    prerolled, without = run(spare), run(None)
     np.testing.assert_array_equal(without[0], plain[0])
     error = affinity_core.metrics.smape(prerolled[0], frames[0]["reference"])
     error_without = affinity_core.metrics.smape(without[0], frames[0]["reference"])
     print(f"first frame SMAPE at 2 spp: pre-roll {error:.4f}, none {error_without:.4f}")
     assert error < error_without
     assert np.abs(prerolled[1] - without[1]).mean() > 0
+
+
+def test_a_captured_preroll_is_used_as_the_extension_renders_it() -> None:
+    """data.preroll_groups with the extension's own pre-roll frames (capture.py's preroll.npz):
+    at s samples per frame each frame's first s samples, whatever the frame itself holds."""
+    frame = {"samples": np.zeros((4, 5, 8, 18), np.float32)}
+    captured = [np.random.default_rng(g).random((4, 5, 8, 18), dtype=np.float32) for g in range(2)]
+    for spp in (2, 4, 8):
+        groups = data.preroll_groups(frame, spp, captured)
+        assert len(groups) == 2
+        for group, source in zip(groups, captured):
+            np.testing.assert_array_equal(group, source[:, :, :spp])
+    with pytest.raises(ValueError, match="fewer than 16 samples"):
+        data.preroll_groups(frame, 16, captured)

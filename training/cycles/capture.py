@@ -15,7 +15,9 @@ what it gets from artists' scenes. On top of that, per frame:
 Writes ``frame_NNNN.exr`` files (docs/FRAME_FILES.md, the reference included) and
 ``render_summary.json``; Blender's denoised frames go to ``blender_oidn.npz`` (``spp{S}_frame{i}``),
 the two target halves of validation sequences to ``reference_halves.npz`` (``a_frame{i}``,
-``b_frame{i}``).
+``b_frame{i}``), and the extension's pre-roll of the first frame to ``preroll.npz``
+(``group{g}``: the per-sample features of pre-roll frame g, as the extension gives them to the
+core before the first frame).
 """
 
 from __future__ import annotations
@@ -51,6 +53,7 @@ class CaptureSettings:
     target_spp: int = 64            # samples of each target render
     targets: int = 1                # independent target renders per frame (2: measure their noise)
     blender_oidn_spp: tuple[int, ...] = ()  # Blender's own denoiser at these sample counts
+    preroll_frames: int = 0         # the extension's pre-roll of the first frame, kept (add_preroll)
 
 
 def render_combined(scene: Any, samples: int, seed: int, denoise: bool) -> tuple[np.ndarray, float]:
@@ -125,6 +128,7 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         np.savez_compressed(os.path.join(folder, "blender_oidn.npz"), **oidn)
     if halves:
         np.savez_compressed(os.path.join(folder, "reference_halves.npz"), **halves)
+    preroll_seconds = _capture_preroll(scene, folder, settings) if settings.preroll_frames else 0.0
 
     summary = {
         "scene_name": scene.name,
@@ -145,6 +149,22 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         "target_half_smape": target_noise,
         "blender_oidn_seconds": {str(s): v for s, v in oidn_seconds.items()},
     }
+    if settings.preroll_frames:
+        summary["preroll_frames"] = settings.preroll_frames
+        summary["seconds"]["preroll"] = preroll_seconds
+    _write_summary(folder, summary)
+    return summary
+
+
+def add_preroll(scene: Any, folder: str, settings: CaptureSettings) -> dict[str, Any]:
+    """Adds ``preroll.npz`` to ``folder``, a complete sequence of ``scene`` made without one;
+    everything else in it is kept. Returns the updated summary, also written."""
+    summary = _read_summary(folder)
+    if summary["spp"] != settings.spp:
+        raise ValueError(f"{folder} has {summary['spp']} samples per frame, not {settings.spp}")
+    seconds = _capture_preroll(scene, folder, settings)
+    summary["preroll_frames"] = settings.preroll_frames
+    summary["seconds"]["preroll"] = seconds
     _write_summary(folder, summary)
     return summary
 
@@ -168,11 +188,12 @@ def refresh_inputs(scene: Any, folder: str, old_folder: str, settings: CaptureSe
     for index, result in enumerate(run.results):
         old = affinity_core.read_frame(os.path.join(old_folder, affinity_core.frame_file_name(index)))
         _write_frame(folder, index, result, old["reference"], old["info"]["reference_spp"])
-    for extra in ("blender_oidn.npz", "reference_halves.npz"):
-        if os.path.isfile(os.path.join(old_folder, extra)):
-            shutil.copyfile(os.path.join(old_folder, extra), os.path.join(folder, extra))
+    _copy_extras(old_folder, folder, ("blender_oidn.npz", "reference_halves.npz"))
     summary.update(_input_summary())
     summary["seconds"].update({"input": input_seconds, **_input_seconds(run)})
+    if settings.preroll_frames:  # the pre-roll is an input: captured again
+        summary["preroll_frames"] = settings.preroll_frames
+        summary["seconds"]["preroll"] = _capture_preroll(scene, folder, settings)
     _write_summary(folder, summary)
     return summary
 
@@ -215,8 +236,7 @@ def deepen_references(scene: Any, folder: str, old_folder: str, half_spp: int,
         frame["info"]["reference_spp"] = 2 * half_spp
         affinity_core.write_frame(os.path.join(folder, os.path.basename(path)), frame)
     np.savez_compressed(os.path.join(folder, "reference_halves.npz"), **halves)
-    if os.path.isfile(os.path.join(old_folder, "blender_oidn.npz")):
-        shutil.copyfile(os.path.join(old_folder, "blender_oidn.npz"), os.path.join(folder, "blender_oidn.npz"))
+    _copy_extras(old_folder, folder, ("blender_oidn.npz", "preroll.npz"))
     summary.update(reference_spp=2 * half_spp, target_seeds_used=seeds_used + 2, target_half_smape=noise)
     summary["seconds"]["targets"] = summary["seconds"]["targets"] + seconds_total
     _write_summary(folder, summary)
@@ -240,6 +260,38 @@ def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
     seconds = time.perf_counter() - start
     shutil.rmtree(scratch, ignore_errors=True)
     return run, seconds
+
+
+def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings) -> float:
+    """The extension's pre-roll of the first frame (settings.preroll_frames frames, S samples
+    each, from the seeds the extension uses) into ``folder``/preroll.npz, written atomically;
+    its wall seconds. A pre-roll frame's first s samples are what the extension renders at s
+    samples per frame: one-sample sub-renders at offsets 0..s-1 of the same seed. The first
+    frame itself is rendered again by the run and dropped (its frame file is the inputs')."""
+    scratch = os.path.join(folder, "extension_output")
+    start = time.perf_counter()
+    run = pipeline.DenoiseRender(
+        scene, scene.view_layers[0], [scene.frame_start],
+        pipeline.Settings(samples_per_frame=settings.spp, output_folder=scratch,
+                          preroll_frames=settings.preroll_frames))
+    run.keep_frames = True
+    run.run()
+    seconds = time.perf_counter() - start
+    shutil.rmtree(scratch, ignore_errors=True)
+    groups = {f"group{g}": frame["samples"] for g, frame in enumerate(run.results[0].preroll_data, start=1)}
+    if len(groups) != settings.preroll_frames:
+        raise RuntimeError(f"the extension rendered {len(groups)} pre-roll frames, not {settings.preroll_frames}")
+    temporary = os.path.join(folder, "preroll.tmp.npz")
+    np.savez_compressed(temporary, **groups)
+    os.replace(temporary, os.path.join(folder, "preroll.npz"))
+    return seconds
+
+
+def _copy_extras(old_folder: str, folder: str, names: tuple[str, ...]) -> None:
+    """The files of ``names`` that ``old_folder`` has, copied into ``folder``."""
+    for name in names:
+        if os.path.isfile(os.path.join(old_folder, name)):
+            shutil.copyfile(os.path.join(old_folder, name), os.path.join(folder, name))
 
 
 def _write_frame(folder: str, index: int, result: Any, reference: np.ndarray, reference_spp: int) -> None:

@@ -2,13 +2,14 @@
 
     .venv-blender/bin/python training/cycles/make_data.py [--out DIR] [--train-seeds 0-99]
         [--val-seeds 9000-9005] [--frames 8] [--train-frames 6] [--size 160x96] [--spp 8] [--train-target-spp 64]
-        [--val-target-spp 256] [--blender-oidn-spp 2,4,8] [--threads 2] [--refresh-inputs]
-        [--deepen-references]
+        [--val-target-spp 256] [--blender-oidn-spp 2,4,8] [--preroll-frames 2] [--threads 2]
+        [--refresh-inputs] [--deepen-references]
 
 Each sequence is a scene of the generator (scene_generator.py) by seed, captured by capture.py:
 ``OUT/train/cycles_NNNNN`` with one independent noisy target per frame (Noise2Noise),
-``OUT/val/cycles_NNNNN`` with two (their mean the reference, their difference its noise) and
-Blender's own denoiser at the benchmark's sample counts. A sequence is rendered into a
+``OUT/val/cycles_NNNNN`` with two (their mean the reference, their difference its noise),
+Blender's own denoiser at the benchmark's sample counts and the extension's pre-roll of the
+first frame (added to complete sequences that lack it). A sequence is rendered into a
 temporary folder and renamed when complete, so the command can be stopped at any time and run
 again to continue; finished sequences are skipped. The default cache is
 ``$AFFINITY_DATA`` or ``~/.cache/affinity/cycles-v1``.
@@ -35,6 +36,7 @@ import capture  # noqa: E402
 import scene_generator  # noqa: E402
 
 import affinity_denoiser  # noqa: E402
+from affinity_denoiser.pipeline import DEFAULT_PREROLL_FRAMES  # noqa: E402
 
 
 def seed_list(text: str) -> list[int]:
@@ -62,8 +64,8 @@ def spp_list(text: str) -> tuple[int, ...]:
 
 def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace) -> None:
     """Renders the sequence of ``seed`` into ``folder``; where ``folder`` is complete, captures
-    its inputs again (``args.refresh_inputs``) or deepens its references
-    (``args.deepen_references``, validation only)."""
+    its inputs again (an older capture version), deepens its references
+    (``args.deepen_references``, validation only) or adds the pre-roll it lacks."""
     width, height = args.size
     validation = split == "val"
     frames = args.frames if validation else args.train_frames
@@ -77,12 +79,19 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
         target_spp=args.val_target_spp if validation else args.train_target_spp,
         targets=2 if validation else 1,
         blender_oidn_spp=args.blender_oidn_spp if validation else (),
+        preroll_frames=args.preroll_frames if validation else 0,
     )
     for stale in glob.glob(glob.escape(folder) + ".tmp-*") + glob.glob(glob.escape(folder) + ".old-*"):
         shutil.rmtree(stale, ignore_errors=True)  # left by a stopped run
     temporary = folder + f".tmp-{os.getpid()}"
-    if os.path.isdir(folder):
-        if validation and args.deepen_references:
+    summary = sequence_summary(folder)
+    deepen = (summary is not None and validation and args.deepen_references
+              and summary["reference_spp"] < 2 * args.val_target_spp)
+    if summary is None:
+        summary = capture.capture_sequence(scene, temporary, settings)
+        os.replace(temporary, folder)
+    elif deepen or capture_version(folder) != capture.CAPTURE_VERSION:
+        if deepen:
             summary = capture.deepen_references(scene, temporary, folder, args.val_target_spp)
         else:
             summary = capture.refresh_inputs(scene, temporary, folder, settings)
@@ -92,13 +101,13 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
         os.replace(folder, old)
         os.replace(temporary, folder)
         shutil.rmtree(old)
-    else:
-        summary = capture.capture_sequence(scene, temporary, settings)
-        os.replace(temporary, folder)
+    if missing_preroll(split, folder, args):
+        summary = capture.add_preroll(scene, folder, settings)  # one file added, atomically
     kind = scene_generator.describe(scene)["kind"]
     seconds = summary["seconds"]
+    preroll = f", pre-roll {seconds['preroll']:.1f} s" if "preroll" in seconds else ""
     print(f"{split} cycles_{seed:05d} ({kind}) done: input {seconds['input']:.1f} s, "
-          f"targets {seconds['targets']:.1f} s", flush=True)
+          f"targets {seconds['targets']:.1f} s{preroll}", flush=True)
 
 
 def restore_interrupted_refresh(folder: str) -> bool:
@@ -122,6 +131,13 @@ def sequence_summary(folder: str) -> dict | None:
         return None
 
 
+def missing_preroll(split: str, folder: str, args: argparse.Namespace) -> bool:
+    """A complete validation sequence without the pre-roll that --preroll-frames asks for."""
+    summary = sequence_summary(folder)
+    return (split == "val" and summary is not None
+            and int(summary.get("preroll_frames", 0)) < args.preroll_frames)
+
+
 def capture_version(folder: str) -> int | None:
     """The capture path that made a complete sequence's inputs (1: before the field existed);
     None where the sequence is not complete."""
@@ -142,6 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--train-target-spp", type=int, default=64)
     parser.add_argument("--val-target-spp", type=int, default=256)
     parser.add_argument("--blender-oidn-spp", type=spp_list, default=(2, 4, 8))
+    parser.add_argument("--preroll-frames", type=int, default=DEFAULT_PREROLL_FRAMES,
+                        help="keep the extension's pre-roll of each validation sequence's first frame "
+                             "(preroll.npz), added to complete sequences that lack it")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--refresh-inputs", action="store_true",
                         help="capture again the inputs of sequences made by an older capture path "
@@ -166,7 +185,8 @@ def main(argv: list[str] | None = None) -> int:
     stale = [job for job in todo if versions[job[2]] not in (None, capture.CAPTURE_VERSION)]
     todo = [job for job in todo if versions[job[2]] is None or (args.refresh_inputs and job in stale)
             or (args.deepen_references and job[0] == "val" and versions[job[2]] is not None
-                and sequence_summary(job[2])["reference_spp"] < 2 * args.val_target_spp)]
+                and sequence_summary(job[2])["reference_spp"] < 2 * args.val_target_spp)
+            or (versions[job[2]] == capture.CAPTURE_VERSION and missing_preroll(job[0], job[2], args))]
     print(f"make_data: {len(jobs) - len(todo)} of {len(jobs)} sequences already in {args.out}",
           flush=True)
     if stale and not args.refresh_inputs:
