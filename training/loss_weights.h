@@ -26,7 +26,13 @@ inline constexpr double kTemporalWeight = 0.25;
 // coarseCell^2 pixels of the target, so its median is close to its mean: the term asks the filter
 // to spread a rare bright sample's energy over its neighbourhood rather than drop it.
 //
-// firstFrame weighs the image terms (SMAPE, coarse) of a sequence's first frame against the
+// The displayed term is mean |D(O) - D(O*)|, D(x) = (x / (1 + x) + e)^(1/2.2) - e^(1/2.2) with
+// x clamped at 0 and e = kDisplayedEpsilon: the error of the images as the benchmark shows them to
+// ColorVideoVDP (tone-mapped by x / (1 + x), gamma 1/2.2; e keeps the gradient finite at black).
+// SMAPE weighs a relative error in a dark corner as much as one on a lit wall; on a display, and
+// to the eye, the dark error is far smaller.
+//
+// firstFrame weighs the image terms (SMAPE, coarse, displayed) of a sequence's first frame against the
 // others' 1: that frame has no history, as every frame after a camera cut, and is the frame a
 // temporal denoiser does worst. The reported spatial and coarse terms stay the plain means over
 // frames, so that runs with different weights compare.
@@ -37,6 +43,9 @@ struct LossWeights {
     double coarse = 0;
     int coarseCell = 8;
     double firstFrame = 1;
+    double displayed = 0;
 };
+
+inline constexpr double kDisplayedEpsilon = 1e-3;
 
 }  // namespace affinity::train

@@ -1,6 +1,7 @@
 #include "train_loss.h"
 
 #include <algorithm>
+#include <cmath>
 
 #include <ATen/ATen.h>
 
@@ -11,6 +12,12 @@ namespace affinity::train {
 
 at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference) {
     return ((image - reference).abs() / (image.abs() + reference.abs() + kSmapeEpsilon)).mean();
+}
+
+at::Tensor displayedImage(const at::Tensor& image) {
+    const at::Tensor positive = image.clamp_min(0.0);
+    const double gamma = 1.0 / 2.2;
+    return (positive / (positive + 1.0) + kDisplayedEpsilon).pow(gamma) - std::pow(kDisplayedEpsilon, gamma);
 }
 
 at::Tensor cellMeans(const at::Tensor& image, int cell) {
@@ -78,9 +85,10 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     const at::TensorOptions options = outputs[0].options();
     at::Tensor spatial = at::zeros({}, options), temporal = at::zeros({}, options);
     at::Tensor absoluteTemporal = at::zeros({}, options), coarse = at::zeros({}, options);
-    at::Tensor regulariser = at::zeros({}, options);
+    at::Tensor regulariser = at::zeros({}, options), displayed = at::zeros({}, options);
     // The image terms weighted (the first frame by weights.firstFrame), for the total.
     at::Tensor weightedSpatial = at::zeros({}, options), weightedCoarse = at::zeros({}, options);
+    at::Tensor weightedDisplayed = at::zeros({}, options);
     for (std::size_t t = 0; t < frames; ++t) {
         const double frameWeight = t == 0 ? weights.firstFrame : 1.0;
         const at::Tensor frameSpatial = smapeLoss(outputs[t], references[t]);
@@ -91,6 +99,11 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
                 smapeLoss(cellMeans(outputs[t], weights.coarseCell), cellMeans(references[t], weights.coarseCell));
             coarse = coarse + frameCoarse;
             weightedCoarse = weightedCoarse + frameWeight * frameCoarse;
+        }
+        if (weights.displayed != 0) {
+            const at::Tensor frameDisplayed = (displayedImage(outputs[t]) - displayedImage(references[t])).abs().mean();
+            displayed = displayed + frameDisplayed;
+            weightedDisplayed = weightedDisplayed + frameWeight * frameDisplayed;
         }
         if (t > 0) {
             TemporalPair pair;
@@ -115,10 +128,11 @@ LossTerms sequenceLoss(const std::vector<at::Tensor>& outputs, const std::vector
     terms.absoluteTemporal = absoluteTemporal / pairs;
     terms.coarse = coarse / double(frames);
     terms.regulariser = regulariser / double(frames);
+    terms.displayed = displayed / double(frames);
     const double frameWeights = weights.firstFrame + double(frames - 1);
     terms.total = weightedSpatial / frameWeights + weights.temporal * terms.temporal +
                   weights.absoluteTemporal * terms.absoluteTemporal + weights.coarse * weightedCoarse / frameWeights +
-                  kRegulariserWeight * terms.regulariser;
+                  weights.displayed * weightedDisplayed / frameWeights + kRegulariserWeight * terms.regulariser;
     return terms;
 }
 

@@ -19,6 +19,9 @@ inline constexpr double kRegulariserWeight = 1e-5;
 // mean |a - b| / (|a| + |b| + 0.01) over every element.
 at::Tensor smapeLoss(const at::Tensor& image, const at::Tensor& reference);
 
+// D(x) of the displayed term (loss_weights.h), elementwise.
+at::Tensor displayedImage(const at::Tensor& image);
+
 // [B, C, H, W] -> [B, C, ceil(H / cell), ceil(W / cell)]: the mean of each cell x cell block, a
 // partial block at the bottom or right edge averaged over the pixels it has.
 at::Tensor cellMeans(const at::Tensor& image, int cell);
@@ -35,6 +38,7 @@ struct LossTerms {
     at::Tensor temporal;          // SMAPE(dt O, dt O*) averaged over frame pairs (0 for one frame)
     at::Tensor absoluteTemporal;  // the absolute temporal term averaged over frame pairs
     at::Tensor coarse;            // SMAPE of the cell means averaged over frames
+    at::Tensor displayed;         // mean |D(O) - D(O*)| averaged over frames (loss_weights.h)
     at::Tensor regulariser;       // sum_k E[(a^k)^2] + E[b^2], averaged over frames
 };
 

@@ -33,6 +33,7 @@ constexpr const char* kUsage =
     "  --coarse-weight W   weight of SMAPE of cell means, against dark bias (0; train_loss.h)\n"
     "  --coarse-cell N     cell side of that term, pixels (8)\n"
     "  --first-frame-weight W  weight of a sequence's first frame in the image terms (1; loss_weights.h)\n"
+    "  --displayed-weight W  weight of mean |D(O) - D(O*)|, D tone-mapped and gamma-encoded (0; loss_weights.h)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
     "  --device NAME       cpu (default), or cuda with a CUDA build of libtorch\n"
     "  --max-sequences N   use the first N training sequences only\n"
@@ -45,7 +46,8 @@ constexpr const char* kUsage =
 constexpr const char* kValueOptions =
     " --data --train --val --out --preset --init --steps --minutes --batch --crop --frames --min-spp"
     " --max-spp --val-spp --lr --lr-half-life --clip --temporal-weight --absolute-temporal-weight"
-    " --coarse-weight --coarse-cell --first-frame-weight --val-every --checkpoint-every --threads --device --seed"
+    " --coarse-weight --coarse-cell --first-frame-weight --displayed-weight --val-every --checkpoint-every --threads "
+    "--device --seed"
     " --max-sequences --keep-spp --export ";
 
 }  // namespace
@@ -144,6 +146,8 @@ int main(int argc, char** argv) {
                 options.loss.coarseCell = integer();
             else if (flag == "--first-frame-weight")
                 options.loss.firstFrame = real();
+            else if (flag == "--displayed-weight")
+                options.loss.displayed = real();
             else if (flag == "--val-every")
                 options.valEvery = integer();
             else if (flag == "--checkpoint-every")

@@ -266,7 +266,7 @@ void checkOptions(const TrainOptions& o) {
     if (o.steps < 1 || o.batch < 1 || o.crop < 8 || o.frames < 1 || o.minSpp < 1 || o.maxSpp < o.minSpp ||
         o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1 ||
         !(o.loss.temporal >= 0) || !(o.loss.absoluteTemporal >= 0) || !(o.loss.coarse >= 0) || o.loss.coarseCell < 1 ||
-        !(o.loss.firstFrame > 0)) {
+        !(o.loss.displayed >= 0) || !(o.loss.firstFrame > 0)) {
         throw Error(
             "training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
             "loss weights >= 0, first-frame weight > 0, coarse cell >= 1)");

@@ -29,7 +29,7 @@ namespace {
 
 // Every term switched on, with weights unlike the defaults, so the gradient check covers them all.
 // Coarse cells of 2 pixels on 4 x 3 images: the right column is a partial cell.
-const train::LossWeights kAllTerms{0.5, 0.3, true, 0.7, 2};
+const train::LossWeights kAllTerms{0.5, 0.3, true, 0.7, 2, 1.5, 0.4};
 
 double lossValue(const std::vector<torch::Tensor>& outputs, const std::vector<torch::Tensor>& references,
                  const std::vector<std::vector<torch::Tensor>>& bandwidths,
@@ -94,6 +94,22 @@ TEST(TrainingLoss, TheFirstFrameWeighsTheImageTermsOfTheTotalOnly) {
     EXPECT_NEAR(terms.total.item<double>(), 2 * (3 * first / 4), 1e-6);
     weights.firstFrame = 1;  // the plain means again
     EXPECT_NEAR(train::sequenceLoss({o0, o1}, {r0, r1}, {}, weights).total.item<double>(), 2 * (first / 2), 1e-6);
+}
+
+TEST(TrainingLoss, DisplayedTermIsTheErrorOfTheToneMappedGammaEncodedImage) {
+    // D(x) = (x / (1 + x) + 0.001)^(1/2.2) - 0.001^(1/2.2): D(1) = 0.687115, D(1.5) = 0.750105.
+    train::LossWeights weights;
+    weights.displayed = 2;
+    const torch::Tensor lit = torch::full({1, 3, 2, 2}, 1.0), litReference = torch::full({1, 3, 2, 2}, 1.5);
+    const train::LossTerms terms = train::sequenceLoss({lit}, {litReference}, {}, weights);
+    EXPECT_NEAR(terms.displayed.item<double>(), 0.062990, 1e-5);
+    EXPECT_NEAR(terms.total.item<double>(), terms.spatial.item<double>() + 2 * 0.062990, 1e-5);
+    // The same relative error 100 times darker counts a third: D(0.01) = 0.084927, D(0.015) = 0.108395.
+    const train::LossTerms dark = train::sequenceLoss({lit / 100}, {litReference / 100}, {}, weights);
+    EXPECT_NEAR(dark.displayed.item<double>(), 0.023468, 1e-5);
+    // Below black is black: a negative output errs as much as 0.
+    EXPECT_NEAR(train::displayedImage(torch::full({1}, -2.0)).item<double>(), 0.0, 1e-9);
+    EXPECT_EQ(train::sequenceLoss({lit}, {litReference}, {}, {}).displayed.item<double>(), 0.0);  // off by default
 }
 
 TEST(TrainingLoss, CellMeansAverageBlocksAndPartialBlocksOverTheirPixels) {
@@ -283,6 +299,9 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
         options.loss.coarse = bad;
         EXPECT_THROW(train::runTraining(options), Error);
         options.loss.coarse = 0;
+        options.loss.displayed = bad;
+        expectRejectedNaming(options, "loss weights");
+        options.loss.displayed = 0;
     }
     options.loss.coarseCell = 0;
     EXPECT_THROW(train::runTraining(options), Error);
