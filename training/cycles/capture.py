@@ -246,20 +246,10 @@ def deepen_references(scene: Any, folder: str, old_folder: str, half_spp: int,
 def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
                     progress: Callable[[str], None]) -> tuple[pipeline.DenoiseRender, float]:
     """Every frame of ``scene`` (frame_start..frame_end) through the extension's capture, its
-    per-sample data kept; the run and its wall seconds."""
+    per-sample data kept; the run and its wall seconds. No pre-roll: a frame file holds its own
+    samples only, so the first one has no history."""
     frames = list(range(scene.frame_start, scene.frame_end + 1))
-    scratch = os.path.join(folder, "extension_output")  # the run's own denoised frames
-    start = time.perf_counter()
-    run = pipeline.DenoiseRender(
-        scene, scene.view_layers[0], frames,
-        # No pre-roll: a frame file holds its own samples only, so the first one has no history.
-        pipeline.Settings(samples_per_frame=settings.spp, output_folder=scratch, preroll_frames=0),
-        progress=lambda done, total, text: progress(f"input {text}"))
-    run.keep_frames = True
-    run.run()
-    seconds = time.perf_counter() - start
-    shutil.rmtree(scratch, ignore_errors=True)
-    return run, seconds
+    return _run_extension(scene, folder, frames, settings.spp, 0, lambda text: progress(f"input {text}"))
 
 
 def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings) -> float:
@@ -268,16 +258,8 @@ def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings) -> floa
     its wall seconds. A pre-roll frame's first s samples are what the extension renders at s
     samples per frame: one-sample sub-renders at offsets 0..s-1 of the same seed. The first
     frame itself is rendered again by the run and dropped (its frame file is the inputs')."""
-    scratch = os.path.join(folder, "extension_output")
-    start = time.perf_counter()
-    run = pipeline.DenoiseRender(
-        scene, scene.view_layers[0], [scene.frame_start],
-        pipeline.Settings(samples_per_frame=settings.spp, output_folder=scratch,
-                          preroll_frames=settings.preroll_frames))
-    run.keep_frames = True
-    run.run()
-    seconds = time.perf_counter() - start
-    shutil.rmtree(scratch, ignore_errors=True)
+    run, seconds = _run_extension(scene, folder, [scene.frame_start], settings.spp,
+                                  settings.preroll_frames, lambda text: None)
     groups = {f"group{g}": frame["samples"] for g, frame in enumerate(run.results[0].preroll_data, start=1)}
     if len(groups) != settings.preroll_frames:
         raise RuntimeError(f"the extension rendered {len(groups)} pre-roll frames, not {settings.preroll_frames}")
@@ -285,6 +267,24 @@ def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings) -> floa
     np.savez_compressed(temporary, **groups)
     os.replace(temporary, os.path.join(folder, "preroll.npz"))
     return seconds
+
+
+def _run_extension(scene: Any, folder: str, frames: list[int], spp: int, preroll_frames: int,
+                   progress: Callable[[str], None]) -> tuple[pipeline.DenoiseRender, float]:
+    """The extension's render of ``frames``, every frame's (and pre-roll frame's) input to the
+    core kept; the run and its wall seconds. Its own denoised frames go to a scratch folder in
+    ``folder``, removed after."""
+    scratch = os.path.join(folder, "extension_output")
+    start = time.perf_counter()
+    run = pipeline.DenoiseRender(
+        scene, scene.view_layers[0], frames,
+        pipeline.Settings(samples_per_frame=spp, output_folder=scratch, preroll_frames=preroll_frames),
+        progress=lambda done, total, text: progress(text))
+    run.keep_frames = True
+    run.run()
+    seconds = time.perf_counter() - start
+    shutil.rmtree(scratch, ignore_errors=True)
+    return run, seconds
 
 
 def _copy_extras(old_folder: str, folder: str, names: tuple[str, ...]) -> None:
