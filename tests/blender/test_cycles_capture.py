@@ -82,7 +82,6 @@ def test_the_reference_is_the_mean_of_two_independent_targets(captured: tuple[st
 def test_the_preroll_is_the_extensions_own(captured: tuple[str, dict]) -> None:
     """preroll.npz: the extension's pre-roll frames of the first frame, each from its own seed,
     as the extension gives them to the core."""
-    import bpy
 
     import affinity_core
     from affinity_denoiser import pipeline
@@ -110,16 +109,18 @@ def test_the_preroll_is_the_extensions_own(captured: tuple[str, dict]) -> None:
 
     def same_light(a: np.ndarray, b: np.ndarray) -> float:
         """The share of lit values that are equal. Not all: another render of the same
-        samples differs in part of its light sampling (0.58 equal on bpy 5.0.1 with the same
-        sample positions, as equal geometry shows; another seed 0.04)."""
+        samples differs in part of its light sampling (0.43-1.0 equal over runs on bpy 4.5 and
+        5.0 with the same sample positions, as equal geometry shows; another seed 0.035)."""
         lit = (radiance(a) != 0) | (radiance(b) != 0)
         return float((radiance(a) == radiance(b))[lit].mean())
 
-    def extension_preroll(spp: int) -> np.ndarray:
+    def extension_preroll(spp: int, pattern: str | None = None) -> np.ndarray:
         """The samples of the extension's one pre-roll frame at ``spp`` samples per frame."""
         scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
                                           kind="interior")
         scene.cycles.seed = SEED
+        if pattern is not None:
+            scene.cycles.sampling_pattern = pattern
         run = pipeline.DenoiseRender(scene, scene.view_layers[0], [scene.frame_start],
                                      pipeline.Settings(samples_per_frame=spp, preroll_frames=1,
                                                        output_folder=os.path.join(folder, "..", f"check{spp}")))
@@ -131,15 +132,15 @@ def test_the_preroll_is_the_extensions_own(captured: tuple[str, dict]) -> None:
     # The extension's first pre-roll frame at the capture's 4 samples is group1.
     extension = extension_preroll(4)
     np.testing.assert_array_equal(extension[..., 6:], groups["group1"][..., 6:])
-    assert same_light(extension, groups["group1"]) > 0.4
-    assert same_light(extension, groups["group2"]) < 0.15
-    # Before Blender 5.3 its first 2 are also what the extension renders at 2 samples per frame,
-    # as the suite uses them (its data is captured with bpy 5.0.1). On 5.3 the size of a
-    # sample set changes its samples (docs/BLENDER.md, "Pre-roll").
-    if bpy.app.version < (5, 3, 0):
-        at_two = extension_preroll(2)
-        np.testing.assert_array_equal(at_two[..., 6:], groups["group1"][:, :, :2, 6:])
-        assert same_light(at_two, groups["group1"][:, :, :2]) > 0.4
+    assert same_light(extension, groups["group1"]) > 0.2
+    assert same_light(extension, groups["group2"]) < 0.1
+    # With the Tabulated Sobol pattern (bpy 5.0.1's default, which made the suite's data) its
+    # first 2 samples are what the extension renders at 2 samples per frame, as the suite uses
+    # them. (Not with 4.5's and 5.3's default, Automatic: there the size of a sample set
+    # changes its samples, for the frames' own samples too.)
+    four, two = extension_preroll(4, "TABULATED_SOBOL"), extension_preroll(2, "TABULATED_SOBOL")
+    np.testing.assert_array_equal(two[..., 6:], four[:, :, :2, 6:])
+    assert same_light(two, four[:, :, :2]) > 0.2
 
 
 def test_make_data_adds_a_missing_preroll_and_keeps_the_rest(captured: tuple[str, dict], tmp_path: Any) -> None:

@@ -255,11 +255,12 @@ def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
 def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings) -> float:
     """The extension's pre-roll of the first frame (settings.preroll_frames frames, S samples
     each, from the seeds the extension uses) into ``folder``/preroll.npz, written atomically;
-    its wall seconds. Before Blender 5.3 a pre-roll frame's first s samples are what the
-    extension renders at s samples per frame (one-sample sub-renders at offsets 0..s-1 of the
-    same seed); on 5.3 the size of a sample set changes its samples (docs/BLENDER.md,
-    "Pre-roll"), as it does for the frames' own samples. The first frame itself is rendered
-    again by the run and dropped (its frame file is the inputs')."""
+    its wall seconds. With the Tabulated Sobol pattern a pre-roll frame's first s samples are
+    what the extension renders at s samples per frame (one-sample sub-renders at offsets
+    0..s-1 of the same seed); with Automatic on Blender 4.5 and 5.3 the size of a sample set
+    changes its samples, as it does for the frames' own (docs/CYCLES_DATA.md, "Capture"). The
+    first frame itself is rendered again by the run and dropped (its frame file is the
+    inputs')."""
     run, seconds = _run_extension(scene, folder, [scene.frame_start], settings.spp,
                                   settings.preroll_frames, lambda text: None)
     groups = {f"group{g}": frame["samples"] for g, frame in enumerate(run.results[0].preroll_data, start=1)}
