@@ -128,7 +128,6 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         np.savez_compressed(os.path.join(folder, "blender_oidn.npz"), **oidn)
     if halves:
         np.savez_compressed(os.path.join(folder, "reference_halves.npz"), **halves)
-    preroll_seconds = _capture_preroll(scene, folder, settings) if settings.preroll_frames else 0.0
 
     summary = {
         "scene_name": scene.name,
@@ -150,8 +149,7 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         "blender_oidn_seconds": {str(s): v for s, v in oidn_seconds.items()},
     }
     if settings.preroll_frames:
-        summary["preroll_frames"] = settings.preroll_frames
-        summary["seconds"]["preroll"] = preroll_seconds
+        _capture_preroll(scene, folder, settings, summary)
     _write_summary(folder, summary)
     return summary
 
@@ -159,12 +157,8 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
 def add_preroll(scene: Any, folder: str, settings: CaptureSettings) -> dict[str, Any]:
     """Adds ``preroll.npz`` to ``folder``, a complete sequence of ``scene`` made without one;
     everything else in it is kept. Returns the updated summary, also written."""
-    summary = _read_summary(folder)
-    if summary["spp"] != settings.spp:
-        raise ValueError(f"{folder} has {summary['spp']} samples per frame, not {settings.spp}")
-    seconds = _capture_preroll(scene, folder, settings)
-    summary["preroll_frames"] = settings.preroll_frames
-    summary["seconds"]["preroll"] = seconds
+    summary = _read_summary(folder, settings.spp)
+    _capture_preroll(scene, folder, settings, summary)
     _write_summary(folder, summary)
     return summary
 
@@ -178,9 +172,7 @@ def refresh_inputs(scene: Any, folder: str, old_folder: str, settings: CaptureSe
     Returns the updated summary, also written to render_summary.json."""
     import affinity_core
 
-    summary = _read_summary(old_folder)
-    if summary["spp"] != settings.spp:
-        raise ValueError(f"{old_folder} has {summary['spp']} samples per frame, not {settings.spp}")
+    summary = _read_summary(old_folder, settings.spp)
     _start_folder(folder)
     run, input_seconds = _capture_inputs(scene, folder, settings, progress)
     if len(run.results) != summary["frames"]:
@@ -192,8 +184,7 @@ def refresh_inputs(scene: Any, folder: str, old_folder: str, settings: CaptureSe
     summary.update(_input_summary())
     summary["seconds"].update({"input": input_seconds, **_input_seconds(run)})
     if settings.preroll_frames:  # the pre-roll is an input: captured again
-        summary["preroll_frames"] = settings.preroll_frames
-        summary["seconds"]["preroll"] = _capture_preroll(scene, folder, settings)
+        _capture_preroll(scene, folder, settings, summary)
     _write_summary(folder, summary)
     return summary
 
@@ -252,15 +243,15 @@ def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
     return _run_extension(scene, folder, frames, settings.spp, 0, lambda text: progress(f"input {text}"))
 
 
-def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings) -> float:
+def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings, summary: dict[str, Any]) -> None:
     """The extension's pre-roll of the first frame (settings.preroll_frames frames, S samples
     each, from the seeds the extension uses) into ``folder``/preroll.npz, written atomically;
-    its wall seconds. With the Tabulated Sobol pattern a pre-roll frame's first s samples are
-    what the extension renders at s samples per frame (one-sample sub-renders at offsets
-    0..s-1 of the same seed); with Automatic on Blender 4.5 and 5.3 the size of a sample set
-    changes its samples, as it does for the frames' own (docs/CYCLES_DATA.md, "Capture"). The
-    first frame itself is rendered again by the run and dropped (its frame file is the
-    inputs')."""
+    ``summary`` records its frames and wall seconds. With the Tabulated Sobol pattern a
+    pre-roll frame's first s samples are what the extension renders at s samples per frame
+    (one-sample sub-renders at offsets 0..s-1 of the same seed); with Automatic on Blender
+    4.5 and 5.3 the size of a sample set changes its samples, as it does for the frames' own
+    (docs/CYCLES_DATA.md, "Capture"). The first frame itself is rendered again by the run and
+    dropped (its frame file is the inputs')."""
     run, seconds = _run_extension(scene, folder, [scene.frame_start], settings.spp,
                                   settings.preroll_frames, lambda text: None)
     groups = {f"group{g}": frame["samples"] for g, frame in enumerate(run.results[0].preroll_data, start=1)}
@@ -269,7 +260,8 @@ def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings) -> floa
     temporary = os.path.join(folder, "preroll.tmp.npz")
     np.savez_compressed(temporary, **groups)
     os.replace(temporary, os.path.join(folder, "preroll.npz"))
-    return seconds
+    summary["preroll_frames"] = settings.preroll_frames
+    summary["seconds"]["preroll"] = seconds
 
 
 def _run_extension(scene: Any, folder: str, frames: list[int], spp: int, preroll_frames: int,
@@ -337,9 +329,13 @@ def _start_folder(folder: str) -> None:
         raise FileExistsError(f"{folder} already holds frame files")
 
 
-def _read_summary(folder: str) -> dict[str, Any]:
+def _read_summary(folder: str, spp: int | None = None) -> dict[str, Any]:
+    """A complete sequence's summary; with ``spp``, refusing one with another sample count."""
     with open(os.path.join(folder, "render_summary.json")) as handle:
-        return json.load(handle)
+        summary = json.load(handle)
+    if spp is not None and summary["spp"] != spp:
+        raise ValueError(f"{folder} has {summary['spp']} samples per frame, not {spp}")
+    return summary
 
 
 def _write_summary(folder: str, summary: dict[str, Any]) -> None:

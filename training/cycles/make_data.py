@@ -85,8 +85,7 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
         shutil.rmtree(stale, ignore_errors=True)  # left by a stopped run
     temporary = folder + f".tmp-{os.getpid()}"
     summary = sequence_summary(folder)
-    deepen = (summary is not None and validation and args.deepen_references
-              and summary["reference_spp"] < 2 * args.val_target_spp)
+    deepen = needs_deeper_references(split, summary, args)
     if summary is None:
         summary = capture.capture_sequence(scene, temporary, settings)
         os.replace(temporary, folder)
@@ -129,6 +128,13 @@ def sequence_summary(folder: str) -> dict | None:
             return json.load(handle)
     except FileNotFoundError:
         return None
+
+
+def needs_deeper_references(split: str, summary: dict | None, args: argparse.Namespace) -> bool:
+    """With --deepen-references: a complete validation sequence whose reference halves have
+    fewer than --val-target-spp samples."""
+    return (args.deepen_references and split == "val" and summary is not None
+            and summary["reference_spp"] < 2 * args.val_target_spp)
 
 
 def missing_preroll(split: str, folder: str, args: argparse.Namespace) -> bool:
@@ -184,8 +190,7 @@ def main(argv: list[str] | None = None) -> int:
     versions = {job[2]: capture_version(job[2]) for job in todo}
     stale = [job for job in todo if versions[job[2]] not in (None, capture.CAPTURE_VERSION)]
     todo = [job for job in todo if versions[job[2]] is None or (args.refresh_inputs and job in stale)
-            or (args.deepen_references and job[0] == "val" and versions[job[2]] is not None
-                and sequence_summary(job[2])["reference_spp"] < 2 * args.val_target_spp)
+            or needs_deeper_references(job[0], sequence_summary(job[2]), args)
             or (versions[job[2]] == capture.CAPTURE_VERSION and missing_preroll(job[0], job[2], args))]
     print(f"make_data: {len(jobs) - len(todo)} of {len(jobs)} sequences already in {args.out}",
           flush=True)
