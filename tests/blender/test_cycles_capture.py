@@ -27,11 +27,17 @@ SEED, WIDTH, HEIGHT, FRAMES = 7, 64, 40, 4
 SETTINGS = capture.CaptureSettings(spp=4, target_spp=64, targets=2, blender_oidn_spp=(4,), preroll_frames=2)
 
 
+def build_test_scene() -> Any:
+    """The fixed tiny sequence's scene, built anew, with its seed."""
+    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
+                                        kind="interior")
+    scene.cycles.seed = SEED
+    return scene
+
+
 @pytest.fixture(scope="module")
 def captured(tmp_path_factory: pytest.TempPathFactory) -> tuple[str, dict]:
-    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
-                                      kind="interior")
-    scene.cycles.seed = SEED
+    scene = build_test_scene()
     folder = str(tmp_path_factory.mktemp("cycles") / "sequence")
     return folder, capture.capture_sequence(scene, folder, SETTINGS)
 
@@ -116,9 +122,7 @@ def test_the_preroll_is_the_extensions_own(captured: tuple[str, dict]) -> None:
 
     def extension_preroll(spp: int, pattern: str | None = None) -> np.ndarray:
         """The samples of the extension's one pre-roll frame at ``spp`` samples per frame."""
-        scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
-                                          kind="interior")
-        scene.cycles.seed = SEED
+        scene = build_test_scene()
         if pattern is not None:
             scene.cycles.sampling_pattern = pattern
         run = pipeline.DenoiseRender(scene, scene.view_layers[0], [scene.frame_start],
@@ -163,9 +167,7 @@ def test_make_data_adds_a_missing_preroll_and_keeps_the_rest(captured: tuple[str
     assert not make_data.missing_preroll("train", old, args)
     assert not make_data.missing_preroll("val", folder, args)
     before = {name: pathlib.Path(old, name).read_bytes() for name in os.listdir(old)}
-    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
-                                      kind="interior")
-    scene.cycles.seed = SEED
+    scene = build_test_scene()
     with pytest.raises(ValueError, match="has 4 samples per frame, not 2"):
         capture.add_preroll(scene, old, capture.CaptureSettings(spp=2, preroll_frames=2))
     new_summary = capture.add_preroll(scene, old, SETTINGS)
@@ -195,9 +197,7 @@ def test_refreshed_inputs_keep_the_targets_and_blenders_frames(
         json.dump(summary, handle)
     assert make_data.capture_version(old) == 1
     assert make_data.capture_version(str(tmp_path / "missing")) is None
-    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
-                                      kind="interior")
-    scene.cycles.seed = SEED
+    scene = build_test_scene()
     with pytest.raises(ValueError, match="has 4 samples per frame, not 2"):
         capture.refresh_inputs(scene, str(tmp_path / "wrong"), old,
                                capture.CaptureSettings(spp=2, target_spp=64, targets=2))
@@ -237,9 +237,7 @@ def test_deepened_references_average_more_independent_samples(
     from affinity_core import metrics
 
     folder, summary = captured
-    scene = scene_generator.build_scene(SEED, width=WIDTH, height=HEIGHT, frames=FRAMES, threads=2,
-                                      kind="interior")
-    scene.cycles.seed = SEED
+    scene = build_test_scene()
     with pytest.raises(ValueError, match="already has 64 samples per reference half"):
         capture.deepen_references(scene, str(tmp_path / "fewer"), folder, 64)
     deeper = str(tmp_path / "deeper")
