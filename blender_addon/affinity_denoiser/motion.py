@@ -174,12 +174,26 @@ def depth_slope(depth: np.ndarray, miss: np.ndarray) -> np.ndarray:
     return slope
 
 
+@dataclass(frozen=True)
+class _PreviousDepth:
+    """The previous frame's depth as the validity test reads it, computed once per frame pair
+    (the camera's test and the moving objects' share it)."""
+    depth: np.ndarray
+    miss: np.ndarray
+    tolerance: np.ndarray
+
+    @staticmethod
+    def of(depth: np.ndarray) -> _PreviousDepth:
+        miss = (depth >= MISS_DEPTH) | (depth <= 0)
+        return _PreviousDepth(depth, miss, DEPTH_TOLERANCE * depth + depth_slope(depth, miss))
+
+
 def _seen_before(
     px: np.ndarray,
     py: np.ndarray,
     expected_depth: np.ndarray,
     miss: np.ndarray,
-    previous_depth: np.ndarray,
+    previous: _PreviousDepth,
 ) -> np.ndarray:
     """Whether the previous frame saw the surface at (px, py): one of the pixels that a bilinear
     fetch at that point reads saw the expected planar depth (for the environment: saw it too).
@@ -187,9 +201,8 @@ def _seen_before(
     Only pixels with a weight in the fetch count: a point landing on a pixel centre reads that
     pixel alone, and its right and lower neighbours must not vouch for it.
     """
+    previous_depth, previous_miss, tolerance = previous.depth, previous.miss, previous.tolerance
     height, width = previous_depth.shape
-    previous_miss = (previous_depth >= MISS_DEPTH) | (previous_depth <= 0)
-    tolerance = DEPTH_TOLERANCE * previous_depth + depth_slope(previous_depth, previous_miss)
     matches = np.zeros(px.shape, bool)
     base_x = np.floor(px - 0.5)
     base_y = np.floor(py - 0.5)
@@ -223,8 +236,18 @@ def camera_motion(
     the same depth (or, for the environment, saw the environment too). The first frame has zero
     motion and no valid pixel.
     """
+    return _camera_motion(camera, depth, previous_camera,
+                          None if previous_depth is None else _PreviousDepth.of(previous_depth))
+
+
+def _camera_motion(
+    camera: Camera,
+    depth: np.ndarray,
+    previous_camera: Camera | None,
+    previous: _PreviousDepth | None,
+) -> tuple[np.ndarray, np.ndarray]:
     shape = (camera.height, camera.width)
-    if previous_camera is None or previous_depth is None:
+    if previous_camera is None or previous is None:
         return np.zeros(shape + (2,), np.float32), np.zeros(shape, np.float32)
     if (previous_camera.width, previous_camera.height) != (camera.width, camera.height):
         return np.zeros(shape + (2,), np.float32), np.zeros(shape, np.float32)
@@ -240,7 +263,7 @@ def camera_motion(
     if previous_camera.orthographic:
         in_front = in_front | miss
     on_screen = (px >= 0) & (px < camera.width) & (py >= 0) & (py < camera.height)
-    valid = on_screen & in_front & _seen_before(px, py, expected_depth, miss, previous_depth)
+    valid = on_screen & in_front & _seen_before(px, py, expected_depth, miss, previous)
     motion[~np.isfinite(motion)] = 0.0
     return motion.astype(np.float32), valid.astype(np.float32)
 
@@ -389,9 +412,9 @@ def scene_motion(current: FrameGeometry,
     the previous frame saw there. Pixels on an object that did not exist in the previous frame
     are invalid. Objects whose key two objects share keep the camera-only motion.
     """
-    motion, valid = camera_motion(current.camera, current.depth,
-                                  previous.camera if previous else None,
-                                  previous.depth if previous else None)
+    previous_depth = _PreviousDepth.of(previous.depth) if previous else None
+    motion, valid = _camera_motion(current.camera, current.depth,
+                                   previous.camera if previous else None, previous_depth)
     if (previous is None or previous.depth.shape != valid.shape
             or current.object_key is None or current.object_local is None
             or current.transforms is None or previous.transforms is None
@@ -430,7 +453,7 @@ def scene_motion(current: FrameGeometry,
     visible = ((x_before >= 0) & (x_before < width) & (y_before >= 0) & (y_before < height)
                & (there[:, 2] < 0.0) & np.isfinite(object_motion).all(axis=-1)
                & _seen_before(x_before, y_before, expected_depth,
-                              np.zeros(len(keys), bool), previous.depth))
+                              np.zeros(len(keys), bool), previous_depth))
     object_motion[~np.isfinite(object_motion)] = 0.0
     motion[rows, cols] = object_motion
     valid[rows, cols] = visible
