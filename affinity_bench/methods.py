@@ -107,6 +107,10 @@ class PrerollRunner:
         return self.denoiser.denoise(frame)
 
 
+def _prerolled(model: affinity_core.Model) -> Callable[[], Runner]:
+    return lambda: PrerollRunner(model)
+
+
 def load_model(path: str) -> affinity_core.Model:
     """PATH, or PATH:bf16 for the model with bfloat16 products (affinity/precision.h)."""
     precision = "fp32"
@@ -118,8 +122,9 @@ def load_model(path: str) -> affinity_core.Model:
 
 
 def make_methods(models: list[tuple[str, str]]) -> list[Method]:
-    """noisy, oidn, svgf, ours-<label> for every (label, path) in `models`, and the ablations
-    of the first model."""
+    """noisy, oidn, svgf, ours-<label> and ours-<label>+preroll for every (label, path) in
+    `models` (the extension runs every model with its pre-roll), and the ablations of the first
+    model."""
     methods = [
         Method("noisy", "input", "per-pixel mean of the samples", _noisy),
         Method("oidn", "baseline", "OpenImageDenoise (pyoidn), HDR colour + albedo + normal, single frame", _oidn),
@@ -128,15 +133,15 @@ def make_methods(models: list[tuple[str, str]]) -> list[Method]:
     loaded = [(label, path, load_model(path)) for label, path in models]
     for label, path, model in loaded:
         methods.append(Method(f"ours-{label}", "ours", f"affinity_core.Denoiser, model {label} ({path})", _ours(model)))
-    if loaded:
-        label, path, model = loaded[0]
         methods.append(Method(f"ours-{label}+preroll", "ours",
                               f"model {label} with the Blender extension's pre-roll: before the first frame, "
                               f"{PREROLL_FRAMES} frames of S samples denoised as a still camera: the "
                               "extension's own pre-roll where the sequence holds it (Cycles suite), else "
                               "the first frame's spare samples (2 groups at 2 spp, 1 at 4, none at 8 with "
                               "8-sample data); costs that many frames' samples once per sequence",
-                              lambda: PrerollRunner(model)))
+                              _prerolled(model)))
+    if loaded:
+        label, path, model = loaded[0]
         for ablation in ABLATIONS:
             methods.append(Method(f"{label}-{ablation}", "ablation",
                                   f"model {label} with ablation={ablation!r}", _ours(model, ablation)))

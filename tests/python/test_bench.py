@@ -45,11 +45,11 @@ def test_every_method_ran_and_every_metric_is_finite(bench: tuple[pathlib.Path, 
     out, _, _ = bench
     rows = read_rows(out / "results.csv")
     methods = {row["method"] for row in rows}
-    expected = {"noisy", "oidn", "svgf", "ours-small", "ours-small+preroll", "ours-tiny", "small-single_frame",
-                "small-no_temporal_kernel", "small-one_kernel"}
+    expected = {"noisy", "oidn", "svgf", "ours-small", "ours-small+preroll", "ours-tiny", "ours-tiny+preroll",
+                "small-single_frame", "small-no_temporal_kernel", "small-one_kernel"}
     # The ladder's other rungs run by default wherever their weights are in the checkout.
     models = pathlib.Path(__file__).resolve().parents[2] / "core" / "models"
-    expected |= {"ours-medium"} if (models / "medium.affw").is_file() else set()
+    expected |= {"ours-medium", "ours-medium+preroll"} if (models / "medium.affw").is_file() else set()
     assert methods == expected
     # 2 sequences x 2 spp x every method, plus noisy and oidn at the equal-time chart's 8 spp.
     assert len(rows) == 2 * 2 * len(methods) + 2 * 2
