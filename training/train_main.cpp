@@ -34,8 +34,6 @@ constexpr const char* kUsage =
     "  --coarse-cell N     cell side of that term, pixels (8)\n"
     "  --first-frame-weight W  weight of a sequence's first frame in the image terms (1; loss_weights.h)\n"
     "  --displayed-weight W  weight of mean |D(O) - D(O*)|, D tone-mapped and gamma-encoded (0; loss_weights.h)\n"
-    "  --preroll-probability P  share of steps pre-rolled as the extension does, from the first frame's\n"
-    "                      spare samples (0; train_preroll.h)   --preroll-frames N  at most N (2)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
     "  --device NAME       cpu (default), or cuda with a CUDA build of libtorch\n"
     "  --max-sequences N   use the first N training sequences only\n"
@@ -48,8 +46,7 @@ constexpr const char* kUsage =
 constexpr const char* kValueOptions =
     " --data --train --val --out --preset --init --steps --minutes --batch --crop --frames --min-spp"
     " --max-spp --val-spp --lr --lr-half-life --clip --temporal-weight --absolute-temporal-weight"
-    " --coarse-weight --coarse-cell --first-frame-weight --displayed-weight --preroll-probability"
-    " --preroll-frames --val-every --checkpoint-every --threads "
+    " --coarse-weight --coarse-cell --first-frame-weight --displayed-weight --val-every --checkpoint-every --threads "
     "--device --seed"
     " --max-sequences --keep-spp --export ";
 
@@ -151,10 +148,6 @@ int main(int argc, char** argv) {
                 options.loss.firstFrame = real();
             else if (flag == "--displayed-weight")
                 options.loss.displayed = real();
-            else if (flag == "--preroll-probability")
-                options.prerollProbability = real();
-            else if (flag == "--preroll-frames")
-                options.prerollFrames = integer();
             else if (flag == "--val-every")
                 options.valEvery = integer();
             else if (flag == "--checkpoint-every")

@@ -31,7 +31,6 @@
 #include "model_weights.h"
 #include "train_augment.h"
 #include "train_loss.h"
-#include "train_preroll.h"
 
 namespace fs = std::filesystem;
 
@@ -128,12 +127,10 @@ std::vector<Sequence> loadSequences(const std::vector<std::string>& folders, int
     return sequences;
 }
 
-// A batch: per frame, the model's inputs and the reference. The first `preroll` frames are the
-// pre-roll (train_preroll.h): denoised for their history, outside the loss.
+// A batch: per frame, the model's inputs and the reference.
 struct Batch {
     std::vector<FrameInput> frames;
     std::vector<torch::Tensor> references;
-    std::size_t preroll = 0;
 };
 
 Clip cutClip(const Sequence& sequence, std::int64_t firstFrame, std::int64_t frameCount, std::int64_t y, std::int64_t x,
@@ -172,8 +169,7 @@ Batch assemble(std::vector<Clip>& clips, const torch::Device& device) {
 
 // A random training batch: `batch` sequences (with repetition), one random window of frames,
 // one random square crop per sequence (the same in all its frames), one spp for the batch drawn
-// uniformly in [minSpp, maxSpp] as a random subset of each sequence's rendered samples. With
-// probability prerollProbability the batch is pre-rolled, as far as the spare samples allow.
+// uniformly in [minSpp, maxSpp] as a random subset of each sequence's rendered samples.
 Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options, std::mt19937_64& rng,
                   const torch::Device& device) {
     std::int64_t frameCount = options.frames, size = options.crop, spp = 64;
@@ -185,10 +181,6 @@ Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options
     const std::int64_t lowSpp = std::min<std::int64_t>(options.minSpp, spp);
     const std::int64_t highSpp = std::min<std::int64_t>(options.maxSpp, spp);
     const std::int64_t batchSpp = std::uniform_int_distribution<int>(int(lowSpp), int(highSpp))(rng);
-    // Drawn only when asked for, so that runs without the pre-roll draw the batches they drew before.
-    const bool prerolled =
-        options.prerollProbability > 0 && std::bernoulli_distribution(options.prerollProbability)(rng);
-    const int prerollFrames = prerolled ? prerollFrameCount(int(batchSpp), int(spp), options.prerollFrames) : 0;
     std::vector<Clip> clips;
     for (int b = 0; b < options.batch; ++b) {
         const Sequence& sequence = data[std::uniform_int_distribution<std::size_t>(0, data.size() - 1)(rng)];
@@ -198,23 +190,12 @@ Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options
         std::vector<std::int64_t> indices(std::size_t(sequence.spp()));
         std::iota(indices.begin(), indices.end(), 0);
         std::shuffle(indices.begin(), indices.end(), rng);
-        std::vector<torch::Tensor> groups;
-        for (int g = 1; g <= prerollFrames; ++g) {
-            const std::vector<std::int64_t> spare(indices.begin() + g * batchSpp, indices.begin() + (g + 1) * batchSpp);
-            groups.push_back(sequence.samples[first]
-                                 .index_select(0, torch::tensor(spare, torch::kLong))
-                                 .narrow(2, y, size)
-                                 .narrow(3, x, size)
-                                 .to(torch::kFloat));
-        }
         indices.resize(std::size_t(batchSpp));
-        Clip clip = withPreroll(cutClip(sequence, first, frameCount, y, x, size, indices), groups);
+        Clip clip = cutClip(sequence, first, frameCount, y, x, size, indices);
         applyAugmentation(clip, randomAugmentation(rng));
         clips.push_back(std::move(clip));
     }
-    Batch batch = assemble(clips, device);
-    batch.preroll = std::size_t(prerollFrames);
-    return batch;
+    return assemble(clips, device);
 }
 
 // A whole validation sequence (every frame, full size) at its first `spp` samples.
@@ -243,7 +224,6 @@ ForwardResult forwardBatch(AffinityModel& model, const Batch& batch, const LossW
     torch::Tensor noisy = torch::zeros({}, batch.references[0].options());
     for (std::size_t t = 0; t < batch.frames.size(); ++t) {
         FrameResult result = model->forwardFrame(batch.frames[t], state);
-        if (t < batch.preroll) continue;
         outputs.push_back(result.output);
         std::vector<torch::Tensor> frameBandwidths;
         for (const KernelParams& kernel : result.kernels) frameBandwidths.push_back(kernel.bandwidth);
@@ -251,12 +231,9 @@ ForwardResult forwardBatch(AffinityModel& model, const Batch& batch, const LossW
         bandwidths.push_back(std::move(frameBandwidths));
         noisy = noisy + smapeLoss(result.noisy.detach(), batch.references[t]);
     }
-    const auto first = std::ptrdiff_t(batch.preroll);
-    const std::vector<torch::Tensor> references(batch.references.begin() + first, batch.references.end());
     std::vector<FrameMotion> motions;
-    for (std::size_t t = batch.preroll; t < batch.frames.size(); ++t)
-        motions.push_back({batch.frames[t].motion, batch.frames[t].valid});
-    return {sequenceLoss(outputs, references, bandwidths, weights, motions), noisy / double(outputs.size())};
+    for (const FrameInput& frame : batch.frames) motions.push_back({frame.motion, frame.valid});
+    return {sequenceLoss(outputs, batch.references, bandwidths, weights, motions), noisy / double(batch.frames.size())};
 }
 
 struct Validation {
@@ -289,12 +266,10 @@ void checkOptions(const TrainOptions& o) {
     if (o.steps < 1 || o.batch < 1 || o.crop < 8 || o.frames < 1 || o.minSpp < 1 || o.maxSpp < o.minSpp ||
         o.valSpp < 1 || o.learningRate <= 0 || o.valEvery < 1 || o.checkpointEvery < 1 || o.threads < 1 ||
         !(o.loss.temporal >= 0) || !(o.loss.absoluteTemporal >= 0) || !(o.loss.coarse >= 0) || o.loss.coarseCell < 1 ||
-        !(o.loss.displayed >= 0) || !(o.loss.firstFrame > 0) || !(o.prerollProbability >= 0) ||
-        !(o.prerollProbability <= 1) || o.prerollFrames < 0) {
+        !(o.loss.displayed >= 0) || !(o.loss.firstFrame > 0)) {
         throw Error(
             "training options out of range (steps, batch, crop >= 8, frames, spp, lr, intervals, threads, "
-            "loss weights >= 0, first-frame weight > 0, coarse cell >= 1, pre-roll probability in [0, 1], "
-            "pre-roll frames >= 0)");
+            "loss weights >= 0, first-frame weight > 0, coarse cell >= 1)");
     }
     if (o.keepSpp < 0 || (o.keepSpp > 0 && o.keepSpp < o.maxSpp))
         throw Error("--keep-spp must be 0 (all samples) or at least --max-spp (" + std::to_string(o.maxSpp) + ")");

@@ -32,10 +32,6 @@ struct TrainOptions {
     int checkpointEvery = 100;   // checkpoint every checkpointEvery steps (and at the end)
     int threads = 2;             // torch intra-op threads
     std::string device = "cpu";  // torch device: "cpu", or "cuda" where libtorch was built with CUDA
-    // Share of steps whose clips are pre-rolled (train_preroll.h), with at most prerollFrames
-    // frames where the spare samples allow (the extension's 2).
-    double prerollProbability = 0;
-    int prerollFrames = 2;
     // Resource limits, not variants of the recipe: a quick run on part of the data, and more
     // sequences in RAM than whole 16-spp ones fit (the drawn spp stay in minSpp..maxSpp).
     int maxSequences = 0;  // use only the first N training sequences (0: all)

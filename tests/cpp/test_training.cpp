@@ -20,7 +20,6 @@
 #include "torch_reference.h"
 #include "train_augment.h"
 #include "train_loss.h"
-#include "train_preroll.h"
 #include "trainer.h"
 
 using namespace affinity;
@@ -276,47 +275,6 @@ TEST(TrainingAugmentation, WarpCommutesWithEveryTransform) {
     }
 }
 
-// The pre-roll (train_preroll.h): groups of spare samples, disjoint from the frame's own.
-TEST(TrainingPreroll, FrameCountTakesOnlyDisjointGroupsOfSpareSamples) {
-    EXPECT_EQ(train::prerollFrameCount(1, 8, 2), 2);
-    EXPECT_EQ(train::prerollFrameCount(2, 8, 2), 2);
-    EXPECT_EQ(train::prerollFrameCount(3, 8, 2), 1);  // 6 of 8 used by the frame and one group
-    EXPECT_EQ(train::prerollFrameCount(4, 8, 2), 1);
-    EXPECT_EQ(train::prerollFrameCount(5, 8, 2), 0);
-    EXPECT_EQ(train::prerollFrameCount(8, 8, 2), 0);
-    EXPECT_EQ(train::prerollFrameCount(1, 8, 0), 0);
-    EXPECT_EQ(train::prerollFrameCount(1, 8, 9), 7);
-    EXPECT_THROW(train::prerollFrameCount(0, 8, 2), Error);
-}
-
-// Pre-roll frames come first, as the extension hands them to the core: a still camera, the
-// first with no history, and the clip's own first frame continuing from them; later frames
-// keep their own motion and validity.
-TEST(TrainingPreroll, PrerollFramesPrecedeTheClipAsAStillCamerasHistory) {
-    torch::manual_seed(4);
-    const std::int64_t size = 5, spp = 2;
-    train::Clip clip{torch::rand({3, spp, 18, size, size}), torch::randn({3, 2, size, size}),
-                     torch::zeros({3, 1, size, size}), torch::rand({3, 3, size, size})};
-    clip.valid[2].fill_(1.0);
-    const std::vector<torch::Tensor> groups{torch::rand({spp, 18, size, size}), torch::rand({spp, 18, size, size})};
-    const train::Clip rolled = train::withPreroll(clip, groups);
-    ASSERT_EQ(rolled.samples.size(0), 5);
-    EXPECT_TRUE(rolled.samples[0].equal(groups[0]));
-    EXPECT_TRUE(rolled.samples[1].equal(groups[1]));
-    EXPECT_TRUE(rolled.samples.narrow(0, 2, 3).equal(clip.samples));
-    EXPECT_EQ(rolled.motion.narrow(0, 0, 3).abs().max().item<float>(), 0.0f);
-    EXPECT_TRUE(rolled.motion.narrow(0, 3, 2).equal(clip.motion.narrow(0, 1, 2)));
-    EXPECT_EQ(rolled.valid[0].max().item<float>(), 0.0f);
-    EXPECT_EQ(rolled.valid[1].min().item<float>(), 1.0f);
-    EXPECT_EQ(rolled.valid[2].min().item<float>(), 1.0f);
-    EXPECT_EQ(rolled.valid[3].max().item<float>(), 0.0f);  // frame 1 of the clip: as it was
-    EXPECT_EQ(rolled.valid[4].min().item<float>(), 1.0f);
-    for (int t = 0; t < 3; ++t) EXPECT_TRUE(rolled.reference[t].equal(clip.reference[0])) << t;
-    EXPECT_TRUE(rolled.reference.narrow(0, 3, 2).equal(clip.reference.narrow(0, 1, 2)));
-    EXPECT_TRUE(train::withPreroll(clip, {}).samples.equal(clip.samples));
-    EXPECT_THROW(train::withPreroll(clip, {torch::rand({spp + 1, 18, size, size})}), Error);
-}
-
 // runTraining(options) throws affinity::Error whose message contains `words`.
 static void expectRejectedNaming(const train::TrainOptions& options, const std::string& words) {
     try {
@@ -352,14 +310,6 @@ TEST(TrainingOptions, NegativeOrNaNLossWeightsAreRejectedBeforeAnyWork) {
         options.loss.firstFrame = bad;
         expectRejectedNaming(options, "first-frame weight");
     }
-    options.loss.firstFrame = 1;
-    for (double bad : {-0.1, 1.5, double(NAN)}) {
-        options.prerollProbability = bad;
-        expectRejectedNaming(options, "pre-roll probability");
-    }
-    options.prerollProbability = 0.5;
-    options.prerollFrames = -1;
-    expectRejectedNaming(options, "pre-roll frames");
     EXPECT_FALSE(fs::exists("unused-out"));
 }
 
@@ -452,16 +402,5 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     EXPECT_EQ(kept.trainSpp, 2);
     EXPECT_EQ(kept.lastStep, 1);
     EXPECT_TRUE(std::isfinite(kept.finalValLoss));
-
-    // Every step pre-rolled: at 2 of 8 spp, two pre-roll frames before each clip; the loss stays
-    // finite and the validation (never pre-rolled) sees the same frames as before.
-    options.outDir = (root / "prerolled").string();
-    options.steps = 2;
-    options.keepSpp = 0;
-    options.prerollProbability = 1;
-    const train::TrainSummary prerolled = train::runTraining(options);
-    EXPECT_EQ(prerolled.lastStep, 2);
-    EXPECT_TRUE(std::isfinite(prerolled.finalValLoss));
-    EXPECT_NEAR(prerolled.finalValNoisySmape, summary.finalValNoisySmape, 1e-9);
     fs::remove_all(root);
 }
