@@ -53,19 +53,20 @@ def _noisy() -> Runner:
     return noisy_mean
 
 
-def _oidn() -> Runner:
+def oidn_denoise(colour: np.ndarray, frame: dict[str, Any]) -> np.ndarray:
+    """OpenImageDenoise (pyoidn, HDR) on `colour`, with the frame's mean albedo and normal."""
     import pyoidn
 
-    def run(frame: dict[str, Any]) -> np.ndarray:
-        samples = frame["samples"]
-        colour = noisy_mean(frame)
-        albedo = np.clip(samples[:, :, :, ALBEDO].mean(axis=2, dtype=np.float32), 0.0, 1.0)
-        normal = samples[:, :, :, NORMAL].mean(axis=2, dtype=np.float32)
-        length = np.linalg.norm(normal, axis=2, keepdims=True)
-        normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)  # misses stay 0
-        return pyoidn.denoise(colour, albedo, normal, hdr=True)
+    samples = frame["samples"]
+    albedo = np.clip(samples[:, :, :, ALBEDO].mean(axis=2, dtype=np.float32), 0.0, 1.0)
+    normal = samples[:, :, :, NORMAL].mean(axis=2, dtype=np.float32)
+    length = np.linalg.norm(normal, axis=2, keepdims=True)
+    normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)  # misses stay 0
+    return pyoidn.denoise(np.ascontiguousarray(colour, dtype=np.float32), albedo, normal, hdr=True)
 
-    return run
+
+def _oidn() -> Runner:
+    return lambda frame: oidn_denoise(noisy_mean(frame), frame)
 
 
 def _svgf() -> Runner:
