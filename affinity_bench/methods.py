@@ -53,20 +53,19 @@ def _noisy() -> Runner:
     return noisy_mean
 
 
-def oidn_denoise(colour: np.ndarray, frame: dict[str, Any]) -> np.ndarray:
-    """OpenImageDenoise (pyoidn, HDR) on `colour`, with the frame's mean albedo and normal."""
+def _oidn() -> Runner:
     import pyoidn
 
-    samples = frame["samples"]
-    albedo = np.clip(samples[:, :, :, ALBEDO].mean(axis=2, dtype=np.float32), 0.0, 1.0)
-    normal = samples[:, :, :, NORMAL].mean(axis=2, dtype=np.float32)
-    length = np.linalg.norm(normal, axis=2, keepdims=True)
-    normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)  # misses stay 0
-    return pyoidn.denoise(np.ascontiguousarray(colour, dtype=np.float32), albedo, normal, hdr=True)
+    def run(frame: dict[str, Any]) -> np.ndarray:
+        samples = frame["samples"]
+        colour = noisy_mean(frame)
+        albedo = np.clip(samples[:, :, :, ALBEDO].mean(axis=2, dtype=np.float32), 0.0, 1.0)
+        normal = samples[:, :, :, NORMAL].mean(axis=2, dtype=np.float32)
+        length = np.linalg.norm(normal, axis=2, keepdims=True)
+        normal = np.divide(normal, length, out=np.zeros_like(normal), where=length > 0)  # misses stay 0
+        return pyoidn.denoise(colour, albedo, normal, hdr=True)
 
-
-def _oidn() -> Runner:
-    return lambda frame: oidn_denoise(noisy_mean(frame), frame)
+    return run
 
 
 def _svgf() -> Runner:
