@@ -31,6 +31,12 @@ class SequenceDenoiser(Protocol):
     def reset(self) -> None: ...
 
 
+#: The model the extension denoises with when the panel names none: the core's small model with a
+#: fourth, wider kernel, fine-tuned on Cycles frames captured through this extension
+#: (docs/CYCLES_DATA.md, ``cycles_disp``). The model built into the core was trained on our own
+#: renderer's frames, whose features and light differ from Cycles'.
+CYCLES_MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "models", "cycles.affw")
+
 #: Tests and development builds may replace the factory (``set_denoiser_factory``).
 _factory: Callable[[str], SequenceDenoiser] | None = None
 
@@ -145,7 +151,7 @@ def set_denoiser_factory(factory: Callable[[str], SequenceDenoiser] | None) -> N
 
 
 def create_denoiser(model_path: str, precision: str = "auto") -> SequenceDenoiser:
-    """A sequence denoiser for ``model_path`` ('' = the model built into the core).
+    """A sequence denoiser for ``model_path`` ('' = the extension's Cycles model, CYCLES_MODEL).
 
     ``precision`` as the panel names it: "auto" takes the network's products in bfloat16 where
     this CPU has AVX512-BF16 (docs/MODEL.md, "bfloat16 products") and in FP32 elsewhere, so that a
@@ -155,7 +161,7 @@ def create_denoiser(model_path: str, precision: str = "auto") -> SequenceDenoise
         return _factory(model_path)
     affinity = load_core()
     # The core reports a missing or corrupt model file with its own message.
-    return affinity.Denoiser(os.path.abspath(model_path) if model_path else None, precision=precision)
+    return affinity.Denoiser(os.path.abspath(model_path) if model_path else CYCLES_MODEL, precision=precision)
 
 
 def write_sample_frame(path: str, frame: dict[str, Any]) -> None:

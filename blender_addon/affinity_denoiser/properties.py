@@ -38,7 +38,7 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
     )
     model_path: bpy.props.StringProperty(
         name="Model",
-        description="Weights file (.affw) of the denoiser; empty for the built-in model",
+        description="Weights file (.affw) of the denoiser; empty for the Cycles model that comes with the extension",
         default="",
         subtype="FILE_PATH",
     )

@@ -108,6 +108,9 @@ def test_blender_builds_a_valid_archive_with_the_wheels(tmp_path: Any) -> None:
         for wheel in wheels:
             with open(wheel, "rb") as handle:
                 assert packed.read("wheels/" + os.path.basename(wheel)) == handle.read()
+        # The model the extension denoises with by default travels inside it.
+        with open(os.path.join(PACKAGE, "models", "cycles.affw"), "rb") as handle:
+            assert packed.read("models/cycles.affw") == handle.read()
 
 
 def test_manifest_lists_exactly_the_built_wheels() -> None:

@@ -12,7 +12,7 @@ import pytest
 import scenes
 from conftest import CORE_IO_AVAILABLE, capture, material_snapshot
 
-from affinity_denoiser import compositor, features, passes, pipeline
+from affinity_denoiser import backend, compositor, features, passes, pipeline
 
 REFERENCE_SPP = 256
 
@@ -253,7 +253,7 @@ def test_streamed_samples_give_what_the_core_gives_on_the_kept_frames(run: dict[
     scene.render.filepath = str(tmp_path / "render" / "frame_")
     job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3], pipeline.Settings(preroll_frames=0))
     job.run()
-    by_hand = affinity_core.Denoiser()
+    by_hand = affinity_core.Denoiser(backend.CYCLES_MODEL)  # what the panel's empty Model means
     for kept, streamed in zip(run["job"].results, job.results, strict=True):
         assert streamed.frame_data is None
         samples = kept.frame_data["samples"]
