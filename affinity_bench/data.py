@@ -145,17 +145,17 @@ def with_spp(frame: dict[str, Any], spp: int) -> dict[str, Any]:
             "valid": frame["valid"], "reference": None, "info": frame["info"]}
 
 
-def preroll_groups(frame: dict[str, Any], spp: int,
-                   captured: list[np.ndarray] | None = None) -> list[np.ndarray]:
+def preroll_groups(frame: dict[str, Any], spp: int, captured: list[np.ndarray] | None = None,
+                   preroll_spp: int = 8) -> list[np.ndarray]:
     """The sample groups a pre-roll of the first frame denoises at `spp` (methods.py), each
-    [H, W, spp, 18]. With `captured` (the extension's own pre-roll frames, as capture.py keeps
-    them): the first `spp` samples of each, which is what the extension renders at `spp`.
-    Without: the frame's samples after its first `spp`, in groups of `spp` (other samples of
-    the same frame)."""
+    [H, W, samples, 18]. With `captured` (the extension's own pre-roll frames, as capture.py
+    keeps them): the first `preroll_spp` samples of each, which is what the extension renders
+    with that many pre-roll samples, whatever `spp`. Without: the frame's samples after its
+    first `spp`, in groups of `spp` (other samples of the same frame)."""
     if captured:
-        if any(group.shape[2] < spp for group in captured):
-            raise ValueError(f"the captured pre-roll has fewer than {spp} samples per pixel")
-        return [np.ascontiguousarray(group[:, :, :spp]) for group in captured]
+        if any(group.shape[2] < preroll_spp for group in captured):
+            raise ValueError(f"the captured pre-roll has fewer than {preroll_spp} samples per pixel")
+        return [np.ascontiguousarray(group[:, :, :preroll_spp]) for group in captured]
     spare = frame["samples"][:, :, spp:]
     return [np.ascontiguousarray(spare[:, :, g * spp:(g + 1) * spp]) for g in range(spare.shape[2] // spp)]
 

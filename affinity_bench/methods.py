@@ -79,13 +79,15 @@ def _ours(model: affinity_core.Model, ablation: str | None = None) -> Callable[[
     return start
 
 
-#: Pre-roll frames of the `+preroll` method, as the Blender extension's default
-#: (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_FRAMES).
+#: Pre-roll frames of the `+preroll` method, and the samples of each where the sequence holds
+#: the extension's own pre-roll, as the Blender extension's defaults
+#: (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_FRAMES and DEFAULT_PREROLL_SAMPLES).
 PREROLL_FRAMES = 2
+PREROLL_SAMPLES = 8
 
 
 class PrerollRunner:
-    """The extension's pre-roll: before the first frame, `preroll` denoises groups of S samples
+    """The extension's pre-roll: before the first frame, `preroll` denoises groups of samples
     of it (data.preroll_groups) as frames of a still camera (output unused), so the first frame
     starts with a history; at most PREROLL_FRAMES groups, fewer where the data holds fewer."""
 
@@ -135,10 +137,10 @@ def make_methods(models: list[tuple[str, str]]) -> list[Method]:
         methods.append(Method(f"ours-{label}", "ours", f"affinity_core.Denoiser, model {label} ({path})", _ours(model)))
         methods.append(Method(f"ours-{label}+preroll", "ours",
                               f"model {label} with the Blender extension's pre-roll: before the first frame, "
-                              f"{PREROLL_FRAMES} frames of S samples denoised as a still camera: the "
-                              "extension's own pre-roll where the sequence holds it (Cycles suite), else "
+                              f"{PREROLL_FRAMES} frames denoised as a still camera: the extension's own pre-roll of "
+                              f"{PREROLL_SAMPLES} samples per frame where the sequence holds it (Cycles suite), else "
                               "the first frame's spare samples (2 groups at 2 spp, 1 at 4, none at 8 with "
-                              "8-sample data); costs that many frames' samples once per sequence",
+                              "8-sample data); costs those frames' samples once per sequence",
                               _prerolled(model)))
     if loaded:
         label, path, model = loaded[0]

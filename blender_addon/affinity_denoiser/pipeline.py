@@ -27,6 +27,10 @@ MAX_SAMPLES_PER_FRAME = 8
 #: sub-renders once per sequence (docs/BLENDER.md, "Pre-roll").
 DEFAULT_PREROLL_FRAMES = 2
 MAX_PREROLL_FRAMES = 8
+#: Samples of each pre-roll frame, whatever the frames' own count: the first frame's history is
+#: then as clean as an 8-sample frame's for a cost paid once per sequence (docs/BLENDER.md,
+#: "Pre-roll").
+DEFAULT_PREROLL_SAMPLES = 8
 #: Added to the scene's seed (times the pre-roll frame's number) for the pre-roll's renders.
 PREROLL_SEED_STEP = 7_919_111
 
@@ -92,6 +96,7 @@ class Settings:
     output_folder: str = ""
     keep_sample_frames: bool = False
     preroll_frames: int = DEFAULT_PREROLL_FRAMES
+    preroll_samples: int = DEFAULT_PREROLL_SAMPLES
 
     @classmethod
     def from_properties(cls, props: Any) -> Settings:
@@ -103,6 +108,7 @@ class Settings:
             output_folder=props.output_folder,
             keep_sample_frames=props.keep_sample_frames,
             preroll_frames=props.preroll_frames,
+            preroll_samples=props.preroll_samples,
         )
 
     def check(self) -> None:
@@ -111,6 +117,8 @@ class Settings:
             raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
         if not 0 <= self.preroll_frames <= MAX_PREROLL_FRAMES:
             raise ValueError(f"pre-roll frames must be 0 to {MAX_PREROLL_FRAMES}")
+        if not 1 <= self.preroll_samples <= MAX_SAMPLES_PER_FRAME:
+            raise ValueError(f"pre-roll samples must be 1 to {MAX_SAMPLES_PER_FRAME}")
 
 
 @dataclass
@@ -327,7 +335,8 @@ class SequenceCapture:
     def _preroll(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
                  before_sample: Callable[[int], None] | None) -> Generator[int, None, list[dict[str, Any]]]:
         """Renders ``frame`` preroll_frames more times, each with another seed (independent
-        samples), and denoises each as a frame of a still camera, the output unused: the frame
+        samples) and preroll_samples samples, and denoises each as a frame of a still camera,
+        the output unused: the frame
         proper then starts with a history (DEFAULT_PREROLL_FRAMES). Yields 0 after each
         sub-render (none of the frame's own samples is done yet); returns the pre-roll frames'
         input to the core (their samples None where they were streamed). Another seed, not sample
@@ -348,9 +357,9 @@ class SequenceCapture:
     def _preroll_frame(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
                        before_sample: Callable[[int], None] | None,
                        group: int) -> Generator[int, None, dict[str, Any]]:
-        spp, denoiser = self.settings.samples_per_frame, self.denoiser
+        spp, denoiser = self.settings.preroll_samples, self.denoiser
         still = np.zeros((camera.height, camera.width, 2), np.float32)
-        samples = None if stream else self._sample_buffer(camera)
+        samples = None if stream else self._sample_buffer(camera, spp)
         for sample in range(spp):
             if before_sample is not None:
                 before_sample(0)
@@ -369,9 +378,10 @@ class SequenceCapture:
         self.timings.denoise.append(time.perf_counter() - start)
         return frame_data
 
-    def _sample_buffer(self, camera: motion.Camera) -> np.ndarray:
-        """Room for a frame's per-sample features where they are kept, not streamed."""
-        return np.empty((camera.height, camera.width, self.settings.samples_per_frame,
+    def _sample_buffer(self, camera: motion.Camera, spp: int | None = None) -> np.ndarray:
+        """Room for a frame's per-sample features (``spp``, or the frames' own count) where they
+        are kept, not streamed."""
+        return np.empty((camera.height, camera.width, spp or self.settings.samples_per_frame,
                          features.FEATURE_COUNT), np.float32)
 
     def _sample_features(self, captured: dict[str, np.ndarray], camera: motion.Camera,

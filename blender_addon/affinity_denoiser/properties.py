@@ -12,7 +12,7 @@ from typing import Any
 
 import bpy
 
-from .pipeline import DEFAULT_PREROLL_FRAMES, MAX_PREROLL_FRAMES, MAX_SAMPLES_PER_FRAME
+from .pipeline import DEFAULT_PREROLL_FRAMES, DEFAULT_PREROLL_SAMPLES, MAX_PREROLL_FRAMES, MAX_SAMPLES_PER_FRAME
 
 #: Where ``last_output_folder``'s value is kept (an ID property of the settings, saved with the
 #: .blend); the property itself has a getter only, so that scripts cannot set it.
@@ -79,6 +79,14 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
         default=DEFAULT_PREROLL_FRAMES,
         min=0,
         max=MAX_PREROLL_FRAMES,
+    )
+    preroll_samples: bpy.props.IntProperty(
+        name="Pre-roll Samples",
+        description="Samples of each pre-roll frame, whatever the samples per frame: more give "
+        "the first frame a cleaner history",
+        default=DEFAULT_PREROLL_SAMPLES,
+        min=1,
+        max=MAX_SAMPLES_PER_FRAME,
     )
     output_folder: bpy.props.StringProperty(
         name="Output Folder",

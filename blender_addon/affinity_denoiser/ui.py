@@ -34,6 +34,7 @@ class AFFINITY_DENOISER_PT_render(bpy.types.Panel):
         column.prop(settings, "temporal")
         column.prop(settings, "warmup_frames")
         column.prop(settings, "preroll_frames")
+        column.prop(settings, "preroll_samples")
         column.prop(settings, "output_folder")
         column.prop(settings, "keep_sample_frames")
         problem = backend.core_status()

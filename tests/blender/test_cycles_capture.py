@@ -127,7 +127,7 @@ def test_the_preroll_is_the_extensions_own(captured: tuple[str, dict]) -> None:
         if pattern is not None:
             scene.cycles.sampling_pattern = pattern
         run = pipeline.DenoiseRender(scene, scene.view_layers[0], [scene.frame_start],
-                                     pipeline.Settings(samples_per_frame=spp, preroll_frames=1,
+                                     pipeline.Settings(samples_per_frame=spp, preroll_frames=1, preroll_samples=spp,
                                                        output_folder=os.path.join(folder, "..", f"check{spp}")))
         run.keep_frames = True
         run.run()

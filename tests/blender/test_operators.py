@@ -130,8 +130,8 @@ def test_panel_draws_every_setting_and_both_operators() -> None:
     assert panel_class.poll(context)
     fake = type("Panel", (), {"layout": _Layout()})()
     panel_class.draw(fake, context)
-    assert fake.layout.drawn[:8] == ["samples_per_frame", "model_path", "precision", "temporal",
-                                     "warmup_frames", "preroll_frames", "output_folder",
+    assert fake.layout.drawn[:9] == ["samples_per_frame", "model_path", "precision", "temporal",
+                                     "warmup_frames", "preroll_frames", "preroll_samples", "output_folder",
                                      "keep_sample_frames"]
     assert "affinity_denoiser.render_frame" in fake.layout.drawn
     assert "affinity_denoiser.render_animation" in fake.layout.drawn

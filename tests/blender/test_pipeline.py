@@ -349,7 +349,8 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
         scene.cycles.seed = seed
         scene.render.filepath = str(tmp_path / f"seed{seed}_preroll{preroll}" / "frame_")
         job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2],
-                                     pipeline.Settings(samples_per_frame=spp, preroll_frames=preroll))
+                                     pipeline.Settings(samples_per_frame=spp, preroll_frames=preroll,
+                                                       preroll_samples=spp))
         job.keep_frames = True
         job.run()
         return job
@@ -383,8 +384,31 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
     assert np.abs(prerolled.results[1].denoised - plain.results[1].denoised).mean() > 1e-4
 
 
+def test_preroll_frames_have_their_own_sample_count(tmp_path: Any) -> None:
+    """By default each pre-roll frame has DEFAULT_PREROLL_SAMPLES (8) samples whatever the
+    frames' own count (docs/BLENDER.md, "Pre-roll", has what that buys on the Cycles suite), and
+    the setting changes it; the frame's own samples stay its own."""
+    scene = scenes.build_scene(frames=1)
+    for setting, expected in ((None, pipeline.DEFAULT_PREROLL_SAMPLES), (3, 3)):
+        scene.render.filepath = str(tmp_path / f"samples{setting}" / "frame_")
+        settings = pipeline.Settings(samples_per_frame=2, preroll_frames=1)
+        if setting is not None:
+            settings.preroll_samples = setting
+        job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1], settings)
+        job.keep_frames = True
+        job.run()
+        (preroll,) = job.results[0].preroll_data
+        assert preroll["samples"].shape[2] == expected
+        assert job.results[0].frame_data["samples"].shape[2] == 2
+        assert len(job.timings.sub_renders) == expected + 2
+    assert pipeline.DEFAULT_PREROLL_SAMPLES == 8
+
+
 def test_a_preroll_out_of_range_is_refused() -> None:
     with pytest.raises(ValueError, match=f"pre-roll frames must be 0 to {pipeline.MAX_PREROLL_FRAMES}"):
         pipeline.Settings(preroll_frames=pipeline.MAX_PREROLL_FRAMES + 1).check()
     with pytest.raises(ValueError, match="pre-roll frames must be 0 to"):
         pipeline.Settings(preroll_frames=-1).check()
+    for samples in (0, pipeline.MAX_SAMPLES_PER_FRAME + 1):
+        with pytest.raises(ValueError, match=f"pre-roll samples must be 1 to {pipeline.MAX_SAMPLES_PER_FRAME}"):
+            pipeline.Settings(preroll_samples=samples).check()

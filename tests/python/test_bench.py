@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import affinity_core
-from affinity_bench import data, report
+from affinity_bench import data, methods, report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 NUMERIC_COLUMNS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "warping_error",
@@ -231,13 +231,16 @@ def test_the_preroll_gives_the_first_frame_a_history_from_its_spare_samples() ->
 
 def test_a_captured_preroll_is_used_as_the_extension_renders_it() -> None:
     """data.preroll_groups with the extension's own pre-roll frames (capture.py's preroll.npz):
-    at s samples per frame each frame's first s samples, whatever the frame itself holds."""
+    each frame's first `preroll_spp` samples (the extension's pre-roll samples), whatever the
+    samples per frame and whatever the frame itself holds."""
     frame = {"samples": np.zeros((4, 5, 8, 18), np.float32)}
     captured = [np.random.default_rng(g).random((4, 5, 8, 18), dtype=np.float32) for g in range(2)]
     for spp in (2, 4, 8):
-        groups = data.preroll_groups(frame, spp, captured)
-        assert len(groups) == 2
-        for group, source in zip(groups, captured):
-            np.testing.assert_array_equal(group, source[:, :, :spp])
+        for preroll_spp in (4, 8):
+            groups = data.preroll_groups(frame, spp, captured, preroll_spp)
+            assert len(groups) == 2
+            for group, source in zip(groups, captured):
+                np.testing.assert_array_equal(group, source[:, :, :preroll_spp])
+    assert methods.PREROLL_SAMPLES == 8  # the extension's DEFAULT_PREROLL_SAMPLES
     with pytest.raises(ValueError, match="fewer than 16 samples"):
-        data.preroll_groups(frame, 16, captured)
+        data.preroll_groups(frame, 2, captured, 16)

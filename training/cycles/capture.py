@@ -245,7 +245,8 @@ def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
 
 def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings, summary: dict[str, Any]) -> None:
     """The extension's pre-roll of the first frame (settings.preroll_frames frames, S samples
-    each, from the seeds the extension uses) into ``folder``/preroll.npz, written atomically;
+    each, from the seeds the extension uses; the cache's S, 8, is the extension's default
+    pre-roll samples) into ``folder``/preroll.npz, written atomically;
     ``summary`` records its frames and wall seconds. With the Tabulated Sobol pattern a
     pre-roll frame's first s samples are what the extension renders at s samples per frame
     (one-sample sub-renders at offsets 0..s-1 of the same seed); with Automatic on Blender
@@ -273,7 +274,8 @@ def _run_extension(scene: Any, folder: str, frames: list[int], spp: int, preroll
     start = time.perf_counter()
     run = pipeline.DenoiseRender(
         scene, scene.view_layers[0], frames,
-        pipeline.Settings(samples_per_frame=spp, output_folder=scratch, preroll_frames=preroll_frames),
+        pipeline.Settings(samples_per_frame=spp, output_folder=scratch, preroll_frames=preroll_frames,
+                          preroll_samples=spp),
         progress=lambda done, total, text: progress(text))
     run.keep_frames = True
     run.run()
