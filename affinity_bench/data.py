@@ -145,8 +145,13 @@ def with_spp(frame: dict[str, Any], spp: int) -> dict[str, Any]:
             "valid": frame["valid"], "reference": None, "info": frame["info"]}
 
 
+#: Samples of each frame of the extension's pre-roll, whatever the samples per frame: its
+#: default (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_SAMPLES).
+PREROLL_SAMPLES = 8
+
+
 def preroll_groups(frame: dict[str, Any], spp: int, captured: list[np.ndarray] | None = None,
-                   preroll_spp: int = 8) -> list[np.ndarray]:
+                   preroll_spp: int = PREROLL_SAMPLES) -> list[np.ndarray]:
     """The sample groups a pre-roll of the first frame denoises at `spp` (methods.py), each
     [H, W, samples, 18]. With `captured` (the extension's own pre-roll frames, as capture.py
     keeps them): the first `preroll_spp` samples of each, which is what the extension renders

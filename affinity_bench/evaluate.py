@@ -12,7 +12,7 @@ import numpy as np
 from affinity_core import metrics
 
 from .data import preroll_groups, with_spp
-from .methods import PREROLL_SAMPLES, Method, PrerollRunner
+from .methods import Method, PrerollRunner
 
 #: Metrics of a frame against the frame before: NaN on the first frame, left out of the means.
 PAIR_METRICS = ("temporal_error", "temporal_error_tonemapped", "warping_error")
@@ -142,8 +142,7 @@ def evaluate_sequence(name: str, failure_case: bool, frames: list[dict[str, Any]
     for count in sorted(set(spp) | set(equal_time_spp)):
         inputs = [with_spp(frame, count) for frame in frames]
         active = [m for m in methods if count in spp or m.label in EQUAL_TIME_METHODS]
-        preroll = preroll_groups(frames[0], count, captured_preroll, PREROLL_SAMPLES)
-        runs = run_methods(active, inputs, timing_runs, preroll)
+        runs = run_methods(active, inputs, timing_runs, preroll_groups(frames[0], count, captured_preroll))
         for method in active:
             outputs, seconds = runs[method.label]
             result = SequenceResult(method.label, method.family, name, failure_case, count, width, height,

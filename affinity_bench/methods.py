@@ -18,6 +18,8 @@ import numpy as np
 
 import affinity_core
 
+from .data import PREROLL_SAMPLES
+
 Runner = Callable[[dict[str, Any]], np.ndarray]
 
 #: The ablations of affinity_core.Denoiser (docs/METHOD.md section 9).
@@ -79,11 +81,10 @@ def _ours(model: affinity_core.Model, ablation: str | None = None) -> Callable[[
     return start
 
 
-#: Pre-roll frames of the `+preroll` method, and the samples of each where the sequence holds
-#: the extension's own pre-roll, as the Blender extension's defaults
-#: (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_FRAMES and DEFAULT_PREROLL_SAMPLES).
+#: Pre-roll frames of the `+preroll` method, as the Blender extension's default
+#: (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_FRAMES); their samples are
+#: data.PREROLL_SAMPLES.
 PREROLL_FRAMES = 2
-PREROLL_SAMPLES = 8
 
 
 class PrerollRunner:

@@ -336,8 +336,7 @@ class SequenceCapture:
                  before_sample: Callable[[int], None] | None) -> Generator[int, None, list[dict[str, Any]]]:
         """Renders ``frame`` preroll_frames more times, each with another seed (independent
         samples) and preroll_samples samples, and denoises each as a frame of a still camera,
-        the output unused: the frame
-        proper then starts with a history (DEFAULT_PREROLL_FRAMES). Yields 0 after each
+        the output unused: the frame proper then starts with a history (DEFAULT_PREROLL_FRAMES). Yields 0 after each
         sub-render (none of the frame's own samples is done yet); returns the pre-roll frames'
         input to the core (their samples None where they were streamed). Another seed, not sample
         offsets past S: a larger sample set changes which samples the first S are, and on

@@ -388,8 +388,11 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
 def test_preroll_frames_have_their_own_sample_count(tmp_path: Any) -> None:
     """By default each pre-roll frame has DEFAULT_PREROLL_SAMPLES (8) samples whatever the
     frames' own count (docs/BLENDER.md, "Pre-roll", has what that buys on the Cycles suite), and
-    the setting changes it; the frame's own samples stay its own."""
+    the setting changes it; the frame's own samples stay its own. Streamed to the core (how a
+    render runs) the 8-sample pre-roll frame before the 2-sample frame gives what the kept
+    frames give, but for the depth normalisation (test_streamed_samples_give_...)."""
     scene = scenes.build_scene(frames=1)
+    kept = {}
     for setting, expected in ((None, pipeline.DEFAULT_PREROLL_SAMPLES), (3, 3)):
         scene.render.filepath = str(tmp_path / f"samples{setting}" / "frame_")
         settings = pipeline.Settings(samples_per_frame=2, preroll_frames=1)
@@ -402,7 +405,16 @@ def test_preroll_frames_have_their_own_sample_count(tmp_path: Any) -> None:
         assert preroll["samples"].shape[2] == expected
         assert job.results[0].frame_data["samples"].shape[2] == 2
         assert len(job.timings.sub_renders) == expected + 2
+        kept[setting] = job.results[0].denoised
     assert pipeline.DEFAULT_PREROLL_SAMPLES == 8
+    scene.render.filepath = str(tmp_path / "streamed" / "frame_")
+    streamed = pipeline.DenoiseRender(scene, scene.view_layers[0], [1],
+                                      pipeline.Settings(samples_per_frame=2, preroll_frames=1))
+    streamed.run()
+    assert streamed.results[0].frame_data is None and len(streamed.timings.sub_renders) == 8 + 2
+    difference = np.abs(streamed.results[0].denoised - kept[None])
+    assert difference.mean() <= 0.01 * np.abs(kept[None]).mean()
+    assert np.abs(kept[3] - kept[None]).mean() > 1e-4  # the pre-roll's samples count
 
 
 def test_a_preroll_out_of_range_is_refused() -> None:

@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 
 import affinity_core
-from affinity_bench import data, methods, report
+from affinity_bench import data, report
 
 PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
 NUMERIC_COLUMNS = ("smape", "relmse", "psnr", "flip", "temporal_error", "temporal_error_tonemapped", "warping_error",
@@ -241,6 +241,6 @@ def test_a_captured_preroll_is_used_as_the_extension_renders_it() -> None:
             assert len(groups) == 2
             for group, source in zip(groups, captured):
                 np.testing.assert_array_equal(group, source[:, :, :preroll_spp])
-    assert methods.PREROLL_SAMPLES == 8  # the extension's DEFAULT_PREROLL_SAMPLES
+    assert data.PREROLL_SAMPLES == 8  # the extension's DEFAULT_PREROLL_SAMPLES
     with pytest.raises(ValueError, match="fewer than 16 samples"):
         data.preroll_groups(frame, 2, captured, 16)
