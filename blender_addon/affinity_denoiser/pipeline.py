@@ -35,6 +35,13 @@ DEFAULT_PREROLL_SAMPLES = 8
 PREROLL_SEED_STEP = 7_919_111
 
 
+def preroll_seed(seed: int, group: int, block: int) -> int:
+    """The seed of pre-roll frame ``group`` (from 1), samples ``block`` x S to (block + 1) x S - 1:
+    the scene's plus PREROLL_SEED_STEP x group for the first S (so an S-sample pre-roll frame is
+    one set of S), another step per further block, distinct from every other frame's."""
+    return (seed + PREROLL_SEED_STEP * (group + (MAX_PREROLL_FRAMES + 1) * block)) % 2**31
+
+
 #: Blender versions whose sample subsets were checked to render exactly one sample of the set.
 #: A behaviour check, not an API one: bpy 4.2.23 and the Blender 4.3.2 program have
 #: ``use_sample_subset`` but ignore ``sample_subset_length`` (a subset at offset k renders samples
@@ -232,12 +239,16 @@ class SequenceCapture:
         self._names: dict[str, str] | None = None
         #: The last frame denoised since the history began; None with no history.
         self.last_frame: int | None = None
+        #: The scene camera of that frame: another one (a cut by camera markers) starts a new
+        #: sequence, pre-rolled like the first.
+        self._camera_name: str | None = None
 
     def reset(self) -> None:
         """Forgets the history: the next frame starts a new sequence."""
         self.denoiser.reset()
         self._previous = None
         self.last_frame = None
+        self._camera_name = None
 
     def frame(self, frame: int,
               before_sample: Callable[[int], None] | None = None) -> Generator[int, None, DenoisedFrame]:
@@ -247,6 +258,8 @@ class SequenceCapture:
 
         scene, spp = self.scene, self.settings.samples_per_frame
         scene.frame_set(frame)
+        if self._camera_name is not None and scene.camera.name != self._camera_name:
+            self.reset()  # a camera cut: nothing before it is history
         depsgraph = bpy.context.evaluated_depsgraph_get()
         camera = motion.scene_camera(scene, depsgraph)
         start = time.perf_counter()
@@ -325,6 +338,7 @@ class SequenceCapture:
             raise RuntimeError(f"the denoiser returned shape {denoised.shape}, "
                                f"expected {noisy.shape}")
         self.last_frame = frame
+        self._camera_name = scene.camera.name
         combined_name = passes.PASS_NAMES["combined"][0]
         alpha = mean[combined_name][..., 3:4] if combined_name in mean else np.ones_like(noisy[..., :1])
         rgba = np.concatenate([denoised, alpha], axis=-1)
@@ -336,33 +350,39 @@ class SequenceCapture:
                  before_sample: Callable[[int], None] | None) -> Generator[int, None, list[dict[str, Any]]]:
         """Renders ``frame`` preroll_frames more times, each with another seed (independent
         samples) and preroll_samples samples, and denoises each as a frame of a still camera,
-        the output unused: the frame proper then starts with a history (DEFAULT_PREROLL_FRAMES). Yields 0 after each
-        sub-render (none of the frame's own samples is done yet); returns the pre-roll frames'
-        input to the core (their samples None where they were streamed). Another seed, not sample
-        offsets past S: a larger sample set changes which samples the first S are, and on
-        Blender 5.3 made them far noisier (docs/BLENDER.md, "Pre-roll")."""
+        the output unused: the frame proper then starts with a history (DEFAULT_PREROLL_FRAMES).
+        Yields 0 after each sub-render (none of the frame's own samples is done yet); returns the
+        pre-roll frames' input to the core (their samples None where they were streamed). Another
+        seed, not sample offsets past S: a larger sample set changes which samples the first S
+        are, and on Blender 5.3 made them far noisier (docs/BLENDER.md, "Pre-roll")."""
         cycles = self.scene.cycles
         seed = cycles.seed
         frames = []
         try:
             for group in range(1, self.settings.preroll_frames + 1):
-                cycles.seed = (seed + PREROLL_SEED_STEP * group) % 2**31
                 frames.append((yield from self._preroll_frame(frame, camera, ray_start, stream,
-                                                              before_sample, group)))
+                                                              before_sample, group, seed)))
         finally:
             cycles.seed = seed
         return frames
 
     def _preroll_frame(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
-                       before_sample: Callable[[int], None] | None,
-                       group: int) -> Generator[int, None, dict[str, Any]]:
+                       before_sample: Callable[[int], None] | None, group: int,
+                       seed: int) -> Generator[int, None, dict[str, Any]]:
+        """Pre-roll frame ``group`` (from 1): preroll_samples one-sample sub-renders at offsets
+        0..S-1 of the frames' sample set, S at a time, each block of S from a seed of its own
+        (``preroll_seed``): where a sub-render is one sample of a set of S (sample subsets),
+        an offset past S renders nothing, and a larger set would change the frames' samples."""
         spp, denoiser = self.settings.preroll_samples, self.denoiser
+        set_size = self.settings.samples_per_frame
         still = np.zeros((camera.height, camera.width, 2), np.float32)
         samples = None if stream else self._sample_buffer(camera, spp)
         for sample in range(spp):
             if before_sample is not None:
                 before_sample(0)
-            sample_features = self._sample_features(self._sub_render(sample), camera, ray_start)
+            if sample % set_size == 0:
+                self.scene.cycles.seed = preroll_seed(seed, group, sample // set_size)
+            sample_features = self._sample_features(self._sub_render(sample % set_size), camera, ray_start)
             if samples is None:
                 denoiser.add_samples(sample_features)
             else:

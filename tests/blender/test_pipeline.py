@@ -350,8 +350,7 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
         scene.cycles.seed = seed
         scene.render.filepath = str(tmp_path / f"seed{seed}_preroll{preroll}" / "frame_")
         job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2],
-                                     pipeline.Settings(samples_per_frame=spp, preroll_frames=preroll,
-                                                       preroll_samples=spp))
+                                     pipeline.Settings(samples_per_frame=spp, preroll_frames=preroll))
         job.keep_frames = True
         job.run()
         return job
@@ -369,7 +368,7 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
                 jobs[preroll] = job
     plain, prerolled = jobs[0], jobs[2]
     assert len(plain.timings.sub_renders) == 2 * spp
-    assert len(prerolled.timings.sub_renders) == 2 * spp + 2 * spp
+    assert len(prerolled.timings.sub_renders) == 2 * spp + 2 * pipeline.DEFAULT_PREROLL_SAMPLES
     first, first_plain = prerolled.results[0], plain.results[0]
     np.testing.assert_array_equal(first.frame_data["samples"], first_plain.frame_data["samples"])
     assert not first_plain.frame_data["valid"].any()
@@ -404,6 +403,17 @@ def test_preroll_frames_have_their_own_sample_count(tmp_path: Any) -> None:
         (preroll,) = job.results[0].preroll_data
         assert preroll["samples"].shape[2] == expected
         assert job.results[0].frame_data["samples"].shape[2] == 2
+        # Every pre-roll sample is a sample of its own, with the frame's light on average: where
+        # sub-renders are one sample of a set, the set must hold all of them (bpy 4.5 and later;
+        # with the frames' set of 2, offsets 2-7 rendered the wrong samples).
+        light = preroll["samples"][..., 0:3] + preroll["samples"][..., 3:6]
+        for s in range(expected):
+            for t in range(s):
+                assert not np.array_equal(light[:, :, s], light[:, :, t]), (s, t)
+        own = job.results[0].frame_data["samples"]
+        own_light = (own[..., 0:3] + own[..., 3:6]).mean(2)
+        assert abs(float((light.mean(2) / (1 + light.mean(2))).mean())
+                   / float((own_light / (1 + own_light)).mean()) - 1) < 0.1
         assert len(job.timings.sub_renders) == expected + 2
         kept[setting] = job.results[0].denoised
     assert pipeline.DEFAULT_PREROLL_SAMPLES == 8
@@ -415,6 +425,42 @@ def test_preroll_frames_have_their_own_sample_count(tmp_path: Any) -> None:
     difference = np.abs(streamed.results[0].denoised - kept[None])
     assert difference.mean() <= 0.01 * np.abs(kept[None]).mean()
     assert np.abs(kept[3] - kept[None]).mean() > 1e-4  # the pre-roll's samples count
+
+
+def test_a_camera_cut_starts_a_new_sequence_with_its_own_preroll(tmp_path: Any) -> None:
+    """A cut (camera markers switch the scene camera at frame 2): frame 2 has no history from
+    frame 1's camera and is pre-rolled like a first frame (zero motion, all valid after its
+    pre-roll); frame 3 follows frame 2 as usual. Without the switch, frame 2 follows frame 1."""
+    scene = scenes.build_scene(frames=3)
+    first = scene.camera
+    second = bpy.data.objects.new("Camera.cut", first.data.copy())
+    scene.collection.objects.link(second)
+    second.rotation_euler = (1.2, 0.0, 0.8)
+    for frame, x in ((2, 4.0), (3, 4.3)):  # it moves too: frame 3 has motion from frame 2
+        second.location = (x, -4.0, 2.5)
+        second.keyframe_insert("location", frame=frame)
+
+    def run(cut: bool) -> pipeline.DenoiseRender:
+        scene.timeline_markers.clear()
+        if cut:
+            scene.timeline_markers.new("A", frame=1).camera = first
+            scene.timeline_markers.new("B", frame=2).camera = second
+        scene.camera = first
+        scene.render.filepath = str(tmp_path / f"cut{cut}" / "frame_")
+        job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
+                                     pipeline.Settings(samples_per_frame=2, preroll_frames=1, preroll_samples=2))
+        job.keep_frames = True
+        job.run()
+        return job
+
+    cut, plain = run(True), run(False)
+    assert [len(r.preroll_data) for r in cut.results] == [1, 1, 0]
+    assert [len(r.preroll_data) for r in plain.results] == [1, 0, 0]
+    after_cut = cut.results[1].frame_data
+    assert after_cut["valid"].all() and not after_cut["motion"].any()
+    assert len(cut.timings.sub_renders) == 3 * 2 + 2 * 2
+    assert not plain.results[1].frame_data["valid"].all() or plain.results[1].frame_data["motion"].any()
+    assert cut.results[2].frame_data["motion"].any()  # frame 3 moves on from frame 2
 
 
 def test_a_preroll_out_of_range_is_refused() -> None:
