@@ -158,11 +158,12 @@ class Denoiser:
 
     ``ablation`` switches off one part of the trained pipeline, for measuring what it buys:
     "single_frame" (no history: every frame denoised on its own), "no_temporal_kernel" (the
-    last kernel has no taps into the previous output) or "one_kernel" (only the last, widest
-    kernel filters). None runs the model as trained.
+    last kernel has no taps into the previous output), "one_kernel" (only the last, widest
+    kernel filters) or "no_light_restoration" (the kernels' output without the coarse light
+    restoration after them). None runs the whole pipeline.
     """
 
-    ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel")
+    ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel", "no_light_restoration")
 
     def __init__(
         self,
@@ -183,6 +184,7 @@ class Denoiser:
             use_history=ablation != "single_frame",
             temporal_kernel=ablation != "no_temporal_kernel",
             all_kernels=ablation != "one_kernel",
+            light_restoration=ablation != "no_light_restoration",
         )
         #: What the last call did: invalid_radiance (NaN/Inf/negative values read as 0),
         #: used_history, reset_reason, exposure (the factor on the radiance the network saw, set by

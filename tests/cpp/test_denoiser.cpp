@@ -175,7 +175,9 @@ std::vector<SampleFrame> withTheFirstFramesRadiance(std::vector<SampleFrame> fra
 
 TEST(Denoiser, LambdaZeroEqualsSingleFrameDenoising) {
     auto frames = withTheFirstFramesRadiance(test::randomSequence(2, 12, 10, 2, 6));
-    Denoiser sequence(historyBlindModel(2)), single(historyBlindModel(2));
+    // The network alone: the light restoration after it carries its own history.
+    Denoiser sequence = ablatedDenoiser(historyBlindModel(2), {.lightRestoration = false});
+    Denoiser single = ablatedDenoiser(historyBlindModel(2), {.lightRestoration = false});
     sequence.denoise(frames[0]);
     EXPECT_LT(maxRelativeDifference(sequence.denoise(frames[1]), single.denoise(frames[1])), 1e-6);
 }
@@ -211,8 +213,11 @@ TEST(DenoiserAblation, SingleFrameDenoisesEveryFrameAlone) {
 // it off must give exactly the single-frame result, and leaving it on must not.
 TEST(DenoiserAblation, NoTemporalKernelRemovesTheOnlyHistoryPathOfANonAccumulatingModel) {
     auto frames = withTheFirstFramesRadiance(test::randomSequence(2, 12, 10, 2, 9));
-    Denoiser withKernel(historyBlindModel(3, 0.0f)), single(historyBlindModel(3, 0.0f));
-    Denoiser withoutKernel = ablatedDenoiser(historyBlindModel(3, 0.0f), {.temporalKernel = false});
+    // The network alone: the light restoration after it carries its own history.
+    Denoiser withKernel = ablatedDenoiser(historyBlindModel(3, 0.0f), {.lightRestoration = false});
+    Denoiser single = ablatedDenoiser(historyBlindModel(3, 0.0f), {.lightRestoration = false});
+    Denoiser withoutKernel =
+        ablatedDenoiser(historyBlindModel(3, 0.0f), {.temporalKernel = false, .lightRestoration = false});
     withKernel.denoise(frames[0]);
     withoutKernel.denoise(frames[0]);
     const std::vector<float> alone = single.denoise(frames[1]);
@@ -242,9 +247,10 @@ TEST(Denoiser, ReportsTheTimeOfEveryStage) {
     Denoiser denoiser(randomModel());
     DenoiseReport report;
     denoiser.denoise(frames[0], &report);
-    ASSERT_EQ(report.stageMilliseconds.size(), 6u);
+    ASSERT_EQ(report.stageMilliseconds.size(), 7u);
     EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
-    EXPECT_EQ(report.stageMilliseconds.back().first, "temporal kernel");
+    EXPECT_EQ(report.stageMilliseconds[5].first, "temporal kernel");
+    EXPECT_EQ(report.stageMilliseconds.back().first, "light restoration");
     for (const auto& [stage, ms] : report.stageMilliseconds) EXPECT_GE(ms, 0.0) << stage;
 }
 

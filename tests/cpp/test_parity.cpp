@@ -14,6 +14,7 @@
 #include "kernels/catmull_rom_warp.h"
 #include "model_config.h"
 #include "model_surgery.h"
+#include "network_denoiser.h"
 #include "random_model.h"
 #include "torch_reference.h"
 
@@ -31,7 +32,7 @@ double maxRelativeDifference(const std::vector<float>& a, const std::vector<floa
 
 void expectParity(const std::string& weightsPath, const std::vector<SampleFrame>& frames) {
     const std::vector<std::vector<float>> expected = train::torchDenoiseSequence(weightsPath, frames);
-    Denoiser denoiser(Model::fromFile(weightsPath, Precision::Float32));  // libtorch computes in FP32
+    Denoiser denoiser = test::networkDenoiser(weightsPath);  // in FP32, as libtorch computes
     ASSERT_EQ(expected.size(), frames.size());
     for (std::size_t t = 0; t < frames.size(); ++t) {
         std::vector<float> actual = denoiser.denoise(frames[t]);

@@ -17,6 +17,7 @@
 #include "affinity/frame_io.h"
 #include "affinity/metrics.h"
 #include "affinity_ops.h"
+#include "network_denoiser.h"
 #include "torch_reference.h"
 #include "train_augment.h"
 #include "train_loss.h"
@@ -374,7 +375,7 @@ TEST(TrainingSmoke, TinyModelLearnsExportsAndMatchesTheCore) {
     for (const std::string& file : listFrameFiles((root / "val" / "seed_201").string()))
         frames.push_back(readFrame(file));
     const std::vector<std::vector<float>> expected = train::torchDenoiseSequence(summary.bestWeights, frames);
-    Denoiser denoiser(Model::fromFile(summary.bestWeights, Precision::Float32));  // against libtorch
+    Denoiser denoiser = test::networkDenoiser(summary.bestWeights);  // against libtorch
     double denoisedSmape = 0, noisySmape = 0;
     for (std::size_t t = 0; t < frames.size(); ++t) {
         const std::vector<float> actual = denoiser.denoise(frames[t]);

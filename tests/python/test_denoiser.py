@@ -135,7 +135,7 @@ def test_single_frame_ablation_ignores_history_and_stages_are_timed(sequence: li
     full.denoise(sequence[0])
     assert np.abs(full.denoise(sequence[1]) - second).max() > 1e-3  # the ablation changed something
     stages = ablated.last_report["stage_ms"]
-    assert list(stages)[0] == "embedding" and list(stages)[-1] == "temporal kernel"
+    assert list(stages)[0] == "embedding" and list(stages)[-2:] == ["temporal kernel", "light restoration"]
     assert all(ms >= 0.0 for ms in stages.values())
 
 
@@ -352,3 +352,18 @@ def test_the_module_reports_its_version() -> None:
     match = re.search(rule["regex"], (root / rule["input"]).read_text(encoding="utf-8"))
     assert match is not None
     assert affinity_core.__version__ == match.group("value")
+
+
+def test_light_restoration_gives_a_dim_first_frame_the_noisy_inputs_light(tmp_path: pathlib.Path) -> None:
+    # On a sequence's first frame the restoration's windows hold the frame alone, and the scale
+    # of a whole dim frame is far wider than its 30-pixel blur: the output's mean light comes
+    # back to the (unbiased) input's, which the kernels alone leave (2.5 % here when written).
+    out = tmp_path / "frames"
+    subprocess.run([str(CLI), "render", "--scene", "low_light", "--frames", "1", "--spp", "2", "--size", "96x64",
+                    "--reference-spp", "0", "--out", str(out)], check=True, capture_output=True, timeout=300)
+    frame = affinity_core.read_frame(affinity_core.list_frame_files(out)[0])
+    noisy = float((frame["samples"][..., 0:3] + frame["samples"][..., 3:6]).mean())
+    restored = float(affinity_core.Denoiser().denoise(frame).mean())
+    kernels_only = float(affinity_core.Denoiser(ablation="no_light_restoration").denoise(frame).mean())
+    assert abs(restored / noisy - 1.0) < 0.005
+    assert abs(kernels_only / noisy - 1.0) > 0.015

@@ -6,11 +6,12 @@
 
 namespace affinity {
 
-// The defaults run the model as trained.
+// The defaults run the whole pipeline.
 struct Ablation {
-    bool useHistory = true;      // false: every frame denoised on its own (single-frame mode)
-    bool temporalKernel = true;  // false: the last kernel has no taps into the previous output
-    bool allKernels = true;      // false: only the last (widest) kernel filters, K = 1
+    bool useHistory = true;        // false: every frame denoised on its own (single-frame mode)
+    bool temporalKernel = true;    // false: the last kernel has no taps into the previous output
+    bool allKernels = true;        // false: only the last (widest) kernel filters, K = 1
+    bool lightRestoration = true;  // false: the kernels' output as it is (light_restoration.h)
 };
 
 // A Denoiser of `model` with the parts `ablation` switches off.

@@ -13,6 +13,7 @@
 #include "network/filter_signal.h"
 #include "network/network.h"
 #include "pipeline/ablation.h"
+#include "pipeline/light_restoration.h"
 #include "pipeline/feature_map_pool.h"
 #include "pipeline/frame_input.h"
 #include "pipeline/sequence_history.h"
@@ -203,12 +204,16 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     stages.filterInBands(tail, frame.embedding, frame.signal, accumulated, motion, valid, kernels, history, clock);
     stages.give(tail);
     pool.give(frame.embedding);
-    pool.give(frame.signal);
     history.keep(std::move(accumulated.embedding), std::move(accumulated.signal));
 
-    // The last kernel's output is the radiance.
+    // The last kernel's output is the radiance (and stays the temporal kernel's history as it is).
     const float* output = history.output.data();
     std::vector<float> radiance(output, output + std::size_t(width) * std::size_t(height) * kSignalChannels);
+    if (ablation.lightRestoration) {
+        restoreLight(frame.signal, motion, valid, useHistory, history.light, radiance.data());
+        clock.mark("light restoration");
+    }
+    pool.give(frame.signal);
     local.bufferBytes = pool.heldCapacity() * sizeof(float);
     if (report) *report = local;
     return radiance;

@@ -8,6 +8,7 @@
 #include "affinity/frame.h"
 #include "kernels/feature_map.h"
 #include "network/embedding.h"
+#include "pipeline/light_restoration.h"
 
 namespace affinity {
 
@@ -17,6 +18,8 @@ public:
     // filter_signal.h) and the last kernel's output (the denoised radiance) and features. The
     // stages read them and put the frame's own in their place.
     FeatureMap embedding, signal, output, lastFeatures;
+    // The light restoration's accumulations (light_restoration.h).
+    LightHistory light;
 
     bool has() const { return has_; }
     // Forgets the sequence (reset(), a failed or interrupted frame): the next frame starts a new one.

@@ -1,0 +1,121 @@
+#include "pipeline/light_restoration.h"
+
+#include <algorithm>
+#include <cstddef>
+#include <utility>
+#include <vector>
+
+#include "kernels/bilinear_warp.h"
+
+namespace affinity {
+namespace {
+
+constexpr int kBoxPasses = 3;
+constexpr int kColumnBlock = 64;  // columns per work item of the vertical pass
+
+float luminance(const float* rgb) { return 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2]; }
+
+// out[i] = mean of in[j * stride] over |j - i| <= radius inside [0, n): a running sum (in double,
+// so that adding and taking away values does not drift).
+void boxLine(const float* in, std::size_t stride, int n, int radius, float* out) {
+    double sum = 0.0;
+    const int first = std::min(radius, n - 1);
+    for (int j = 0; j <= first; ++j) sum += in[std::size_t(j) * stride];
+    for (int i = 0; i < n; ++i) {
+        const int low = std::max(0, i - radius), high = std::min(n - 1, i + radius);
+        out[i] = float(sum / double(high - low + 1));
+        if (i + radius + 1 < n) sum += in[std::size_t(i + radius + 1) * stride];
+        if (i - radius >= 0) sum -= in[std::size_t(i - radius) * stride];
+    }
+}
+
+void boxRows(FeatureMap& map, int radius) {
+    const int width = map.width();
+#pragma omp parallel
+    {
+        std::vector<float> line(static_cast<std::size_t>(width));
+#pragma omp for schedule(static)
+        for (int y = 0; y < map.height(); ++y) {
+            float* row = map.pixel(y, 0);
+            boxLine(row, 1, width, radius, line.data());
+            std::copy(line.begin(), line.end(), row);
+        }
+    }
+}
+
+void boxColumns(FeatureMap& map, int radius) {
+    const int width = map.width(), height = map.height();
+    const int blocks = (width + kColumnBlock - 1) / kColumnBlock;
+#pragma omp parallel
+    {
+        std::vector<float> line(static_cast<std::size_t>(height));
+#pragma omp for schedule(static)
+        for (int block = 0; block < blocks; ++block) {
+            const int end = std::min(width, (block + 1) * kColumnBlock);
+            for (int x = block * kColumnBlock; x < end; ++x) {
+                boxLine(map.pixel(0, x), std::size_t(width), height, radius, line.data());
+                for (int y = 0; y < height; ++y) *map.pixel(y, x) = line[std::size_t(y)];
+            }
+        }
+    }
+}
+
+// A one-channel map of the luminance of a 3-channel one, blurred.
+FeatureMap blurredLuminance(const float* rgb, int height, int width) {
+    FeatureMap map(height, width, 1);
+    const std::size_t pixels = std::size_t(height) * std::size_t(width);
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) map.data()[p] = luminance(rgb + std::size_t(p) * 3);
+    blurForLight(map);
+    return map;
+}
+
+// accumulated = w * warped previous + (1 - w) * current where valid, current elsewhere.
+void accumulate(const FeatureMap& previous, const float* motion, const float* valid, FeatureMap& current) {
+    FeatureMap warped(current.height(), current.width(), 1);
+    warpBilinear(previous, motion, warped);
+    const std::size_t pixels = std::size_t(current.height()) * std::size_t(current.width());
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) {
+        if (valid[p] > 0.5f)
+            current.data()[p] =
+                kLightHistoryWeight * warped.data()[p] + (1.0f - kLightHistoryWeight) * current.data()[p];
+    }
+}
+
+}  // namespace
+
+void blurForLight(FeatureMap& map) {
+    for (int pass = 0; pass < kBoxPasses; ++pass) {
+        boxRows(map, kLightBoxRadius);
+        boxColumns(map, kLightBoxRadius);
+    }
+}
+
+void restoreLight(const FeatureMap& noisy, const float* motion, const float* valid, bool useHistory,
+                  LightHistory& history, float* radiance) {
+    const int height = noisy.height(), width = noisy.width();
+    FeatureMap input = blurredLuminance(noisy.data(), height, width);
+    FeatureMap output = blurredLuminance(radiance, height, width);
+    const bool continues = useHistory && history.input.height() == height && history.input.width() == width;
+    if (continues) {
+        accumulate(history.input, motion, valid, input);
+        accumulate(history.output, motion, valid, output);
+    }
+    const std::size_t pixels = std::size_t(height) * std::size_t(width);
+    double meanInput = 0.0;
+    for (std::size_t p = 0; p < pixels; ++p) meanInput += input.data()[p];
+    meanInput /= double(std::max<std::size_t>(pixels, 1));
+    // Keeps the ratio of two near-black windows near 1 (the scale of the frame's light).
+    const float floor = float(1e-3 * meanInput) + 1e-30f;
+#pragma omp parallel for schedule(static)
+    for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) {
+        const float ratio = (input.data()[p] + floor) / (output.data()[p] + floor);
+        const float gain = std::clamp(ratio, 1.0f / kLightMaxGain, kLightMaxGain);
+        for (int c = 0; c < 3; ++c) radiance[std::size_t(p) * 3 + std::size_t(c)] *= gain;
+    }
+    history.input = std::move(input);
+    history.output = std::move(output);
+}
+
+}  // namespace affinity

@@ -1,0 +1,15 @@
+#pragma once
+// The trained network alone, without the light restoration the Denoiser runs after it
+// (docs/MODEL.md section 10): what the training framework computes, for the parity tests.
+#include <string>
+
+#include "affinity/denoiser.h"
+#include "pipeline/ablation.h"
+
+namespace affinity::test {
+
+inline Denoiser networkDenoiser(const std::string& weightsPath) {
+    return ablatedDenoiser(Model::fromFile(weightsPath, Precision::Float32), {.lightRestoration = false});
+}
+
+}  // namespace affinity::test
