@@ -146,6 +146,8 @@ def make_methods(models: list[tuple[str, str]]) -> list[Method]:
     if loaded:
         label, path, model = loaded[0]
         for ablation in ABLATIONS:
+            if ablation == "no_light_restoration" and not model.light_restoration:
+                continue  # the model's file does not ask for it: the row would be the model's own
             methods.append(Method(f"{label}-{ablation}", "ablation",
                                   f"model {label} with ablation={ablation!r}", _ours(model, ablation)))
     return methods

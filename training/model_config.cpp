@@ -172,6 +172,7 @@ ModelConfig configFromWeights(const Weights& weights) {
         if (value != 0 && value != 1) throw Error(source + ": " + name + " is " + str(value) + ", expected 0 or 1");
         return value == 1;
     };
+    config.lightRestoration = flag("config.light_restoration");
     // Switches of variants that lost and were removed (docs/TRAINING.md, "Tried and lost"): a file
     // that turns one on is refused rather than trained or exported as a different model.
     for (const auto& [name, what] : {std::pair<const char*, const char*>{"config.source_weights", "source weights"},

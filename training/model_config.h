@@ -26,6 +26,9 @@ struct ModelConfig {
     int kernels = 3;                     // K: dilated affinity kernels, the last one also temporal
     int affinityFeatures = 8;            // F: affinity features per kernel
     int kernelSize = 5;                  // T: spatial taps per side (odd)
+    // Not part of the network: whether the core restores light after the kernels (docs/MODEL.md
+    // section 10). Kept from the weights a training starts from, written back on export.
+    bool lightRestoration = false;
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
     // Channels the moving average accumulates and the kernels filter: RGB radiance.

@@ -182,4 +182,17 @@ std::vector<NamedTensor> withKernelAdded(const Weights& trained, double bandwidt
     return tensors;
 }
 
+std::vector<NamedTensor> withLightRestoration(const Weights& trained, bool on) {
+    std::vector<NamedTensor> tensors;
+    for (NamedTensor& tensor : copiesOf(trained))
+        if (tensor.name != "config.light_restoration") tensors.push_back(std::move(tensor));
+    NamedTensor flag;
+    flag.name = "config.light_restoration";
+    flag.dtype = DType::Int32;
+    flag.shape = {1};
+    flag.ints = {on ? 1 : 0};
+    tensors.push_back(std::move(flag));
+    return tensors;
+}
+
 }  // namespace affinity::train

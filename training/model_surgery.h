@@ -27,4 +27,8 @@ std::vector<NamedTensor> widened(const Weights& trained, const Weights& fresh);
 // that is not positive or a model that already has the most kernels a file may hold.
 std::vector<NamedTensor> withKernelAdded(const Weights& trained, double bandwidthScale);
 
+// The same weights with config.light_restoration set to `on` (docs/MODEL.md sections 8 and 10):
+// the switch is a property of the file, not a change of the network.
+std::vector<NamedTensor> withLightRestoration(const Weights& trained, bool on);
+
 }  // namespace affinity::train

@@ -4,6 +4,8 @@
 //   affinity_model_tool init --preset NAME --seed N --out FILE.affw
 //   affinity_model_tool describe FILE.affw
 //   affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw
+//   affinity_model_tool add-kernel [--bandwidth-scale S] IN.affw OUT.affw
+//   affinity_model_tool light-restoration on|off IN.affw OUT.affw
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -25,7 +27,9 @@ constexpr const char* kUsage =
     "       affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw   (same function, the preset's wider\n"
     "           layers; the new channels' incoming weights initialised with seed N)\n"
     "       affinity_model_tool add-kernel [--bandwidth-scale S] IN.affw OUT.affw   (one more dilated kernel,\n"
-    "           the last and widest; it starts as a copy of the old last one, bandwidth x S, default 2)\n";
+    "           the last and widest; it starts as a copy of the old last one, bandwidth x S, default 2)\n"
+    "       affinity_model_tool light-restoration on|off IN.affw OUT.affw   (whether denoising restores the\n"
+    "           input's light after the kernels, docs/MODEL.md section 10; the weights unchanged)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -86,6 +90,7 @@ int runDescribe(const std::vector<std::string>& args) {
     std::cout << "  bottleneck     " << joined(config.bottleneck.widths) << "\n";
     std::cout << "  kernels        K = " << config.kernels << ", F = " << config.affinityFeatures
               << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
+    std::cout << "  light restoration " << (config.lightRestoration ? "on" : "off") << "\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];
@@ -163,6 +168,15 @@ int runAddKernel(const std::vector<std::string>& args) {
     return 0;
 }
 
+int runLightRestoration(const std::vector<std::string>& args) {
+    if (args.size() != 3 || (args[0] != "on" && args[0] != "off"))
+        throw Error("light-restoration: expected on|off IN.affw OUT.affw");
+    if (args[1] == args[2]) throw Error("light-restoration: the output must not overwrite the input");
+    writeWeightsFile(args[2], withLightRestoration(Weights::fromFile(args[1]), args[0] == "on"));
+    std::cout << "wrote " << args[2] << ": " << args[1] << " with light restoration " << args[0] << "\n";
+    return 0;
+}
+
 }  // namespace
 }  // namespace affinity::train
 
@@ -178,6 +192,7 @@ int main(int argc, char** argv) {
         if (args[0] == "describe") return affinity::train::runDescribe(rest);
         if (args[0] == "widen") return affinity::train::runWiden(rest);
         if (args[0] == "add-kernel") return affinity::train::runAddKernel(rest);
+        if (args[0] == "light-restoration") return affinity::train::runLightRestoration(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

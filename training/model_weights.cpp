@@ -26,6 +26,7 @@ std::vector<NamedTensor> modelTensors(const AffinityModel& model) {
     integer("config.kernels", config.kernels);
     integer("config.affinity_features", config.affinityFeatures);
     integer("config.kernel_size", config.kernelSize);
+    if (config.lightRestoration) integer("config.light_restoration", 1);
     return tensors;
 }
 

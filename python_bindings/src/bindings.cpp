@@ -371,6 +371,7 @@ PYBIND11_MODULE(_core, m) {
         .def_property_readonly("kernels", &Model::kernels)
         .def_property_readonly("affinity_features", &Model::affinityFeatures)
         .def_property_readonly("tap_size", &Model::tapSize)
+        .def_property_readonly("light_restoration", &Model::lightRestoration)
         .def_property_readonly("embedding_channels", &Model::embeddingChannels)
         .def_property_readonly("parameter_count", &Model::parameterCount)
         .def("flops_per_pixel", &Model::flopsPerPixel, py::arg("spp"));

@@ -175,9 +175,7 @@ std::vector<SampleFrame> withTheFirstFramesRadiance(std::vector<SampleFrame> fra
 
 TEST(Denoiser, LambdaZeroEqualsSingleFrameDenoising) {
     auto frames = withTheFirstFramesRadiance(test::randomSequence(2, 12, 10, 2, 6));
-    // The network alone: the light restoration after it carries its own history.
-    Denoiser sequence = ablatedDenoiser(historyBlindModel(2), {.lightRestoration = false});
-    Denoiser single = ablatedDenoiser(historyBlindModel(2), {.lightRestoration = false});
+    Denoiser sequence(historyBlindModel(2)), single(historyBlindModel(2));
     sequence.denoise(frames[0]);
     EXPECT_LT(maxRelativeDifference(sequence.denoise(frames[1]), single.denoise(frames[1])), 1e-6);
 }
@@ -213,11 +211,8 @@ TEST(DenoiserAblation, SingleFrameDenoisesEveryFrameAlone) {
 // it off must give exactly the single-frame result, and leaving it on must not.
 TEST(DenoiserAblation, NoTemporalKernelRemovesTheOnlyHistoryPathOfANonAccumulatingModel) {
     auto frames = withTheFirstFramesRadiance(test::randomSequence(2, 12, 10, 2, 9));
-    // The network alone: the light restoration after it carries its own history.
-    Denoiser withKernel = ablatedDenoiser(historyBlindModel(3, 0.0f), {.lightRestoration = false});
-    Denoiser single = ablatedDenoiser(historyBlindModel(3, 0.0f), {.lightRestoration = false});
-    Denoiser withoutKernel =
-        ablatedDenoiser(historyBlindModel(3, 0.0f), {.temporalKernel = false, .lightRestoration = false});
+    Denoiser withKernel(historyBlindModel(3, 0.0f)), single(historyBlindModel(3, 0.0f));
+    Denoiser withoutKernel = ablatedDenoiser(historyBlindModel(3, 0.0f), {.temporalKernel = false});
     withKernel.denoise(frames[0]);
     withoutKernel.denoise(frames[0]);
     const std::vector<float> alone = single.denoise(frames[1]);
@@ -247,10 +242,9 @@ TEST(Denoiser, ReportsTheTimeOfEveryStage) {
     Denoiser denoiser(randomModel());
     DenoiseReport report;
     denoiser.denoise(frames[0], &report);
-    ASSERT_EQ(report.stageMilliseconds.size(), 7u);
+    ASSERT_EQ(report.stageMilliseconds.size(), 6u);
     EXPECT_EQ(report.stageMilliseconds.front().first, "embedding");
-    EXPECT_EQ(report.stageMilliseconds[5].first, "temporal kernel");
-    EXPECT_EQ(report.stageMilliseconds.back().first, "light restoration");
+    EXPECT_EQ(report.stageMilliseconds.back().first, "temporal kernel");
     for (const auto& [stage, ms] : report.stageMilliseconds) EXPECT_GE(ms, 0.0) << stage;
 }
 
@@ -801,5 +795,32 @@ TEST(DenoiserExposure, ACameraCutStartsANewSequence) {
             denoiser.denoise(frames[1], &cut);
         EXPECT_FALSE(cut.resetReason.empty());
         EXPECT_NEAR(cut.exposure / first.exposure, streamedFrames ? 1.0f : 0.1f, 1e-6f) << streamedFrames;
+    }
+}
+
+// The light restoration (docs/MODEL.md section 10) runs where the weights file asks for it:
+// without the switch the output is the kernels' own, bit for bit.
+TEST(Denoiser, TheWeightsFileSwitchesTheLightRestoration) {
+    auto frames = test::randomSequence(2, 12, 10, 2, 12);
+    auto modelWith = [](int value) {
+        auto tensors = test::randomModelTensors(test::ModelShape{}, 5);
+        if (value >= 0) tensors.push_back({"config.light_restoration", DType::Int32, {1}, {}, {value}});
+        const auto bytes = train::serializeWeights(tensors);
+        return Model::fromWeights(Weights::fromMemory(bytes.data(), bytes.size(), "model"), Precision::Float32);
+    };
+    const Model absent = modelWith(-1), off = modelWith(0), on = modelWith(1);
+    EXPECT_FALSE(absent.lightRestoration());
+    EXPECT_FALSE(off.lightRestoration());
+    EXPECT_TRUE(on.lightRestoration());
+    EXPECT_FALSE(Model::builtIn().lightRestoration());
+    EXPECT_THROW(modelWith(2), Error);
+    Denoiser plain(absent), restoring(on), kernelsOnly = ablatedDenoiser(on, {.lightRestoration = false});
+    for (const auto& frame : frames) {
+        const std::vector<float> kernels = kernelsOnly.denoise(frame);
+        EXPECT_EQ(plain.denoise(frame), kernels);
+        DenoiseReport report;
+        EXPECT_GT(maxRelativeDifference(restoring.denoise(frame, &report), kernels), 1e-3);
+        ASSERT_EQ(report.stageMilliseconds.size(), 7u);
+        EXPECT_EQ(report.stageMilliseconds.back().first, "light restoration");
     }
 }

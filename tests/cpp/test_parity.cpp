@@ -2,6 +2,7 @@
 // model on the same weights and the same multi-frame sequences (docs/MODEL.md).
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 
 #include <gtest/gtest.h>
@@ -14,6 +15,7 @@
 #include "kernels/catmull_rom_warp.h"
 #include "model_config.h"
 #include "model_surgery.h"
+#include "model_weights.h"
 #include "network_denoiser.h"
 #include "random_model.h"
 #include "torch_reference.h"
@@ -164,4 +166,28 @@ TEST(Parity, EveryPresetAtInitialisation) {
 
 TEST(Parity, TheShippedDefaultModel) {
     expectParity(std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw", test::randomSequence(3, 16, 16, 4, 5));
+}
+
+// The light restoration's switch (docs/MODEL.md section 10) changes no tensor of the network,
+// and a model trained from a file that has it exports it again.
+TEST(ModelSurgery, TheLightRestorationSwitchKeepsTheNetworkAndSurvivesTraining) {
+    const Weights trained = Weights::fromFile(std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw");
+    auto load = [](const std::vector<train::NamedTensor>& tensors, const char* name) {
+        const auto bytes = train::serializeWeights(tensors);
+        return Weights::fromMemory(bytes.data(), bytes.size(), name);
+    };
+    const Weights on = load(train::withLightRestoration(trained, true), "on");
+    EXPECT_TRUE(Model::fromWeights(on).lightRestoration());
+    EXPECT_FALSE(Model::fromWeights(trained).lightRestoration());
+    std::vector<std::string> names = on.names();
+    names.erase(std::find(names.begin(), names.end(), "config.light_restoration"));
+    ASSERT_EQ(names, trained.names());
+    for (const std::string& name : names) {
+        const TensorView &a = on.tensor(name), &b = trained.tensor(name);
+        ASSERT_EQ(a.count, b.count) << name;
+        EXPECT_EQ(std::memcmp(a.data, b.data, a.count * 4), 0) << name;  // 4-byte elements
+    }
+    const Weights exported = load(train::modelTensors(train::modelFromWeights(on)), "exported");
+    EXPECT_TRUE(Model::fromWeights(exported).lightRestoration());
+    EXPECT_FALSE(Model::fromWeights(load(train::withLightRestoration(on, false), "off")).lightRestoration());
 }

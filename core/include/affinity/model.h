@@ -23,9 +23,12 @@ public:
     static Model fromWeights(const Weights& weights, Precision precision = Precision::Auto);
 
     const std::string& source() const;
-    int kernels() const;            // K
-    int affinityFeatures() const;   // F
-    int tapSize() const;            // T
+    int kernels() const;           // K
+    int affinityFeatures() const;  // F
+    int tapSize() const;           // T
+    // Whether denoising restores light after the kernels (docs/MODEL.md section 10); set in the
+    // weights file (config.light_restoration), off for files without it.
+    bool lightRestoration() const;
     int embeddingChannels() const;  // E
     std::int64_t parameterCount() const;
     Precision precision() const;  // what it computes in: Float32 or BFloat16, never Auto

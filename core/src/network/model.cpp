@@ -34,6 +34,7 @@ const std::string& Model::source() const { return network_->source; }
 int Model::kernels() const { return network_->kernels; }
 int Model::affinityFeatures() const { return network_->affinityFeatures; }
 int Model::tapSize() const { return network_->tapSize; }
+bool Model::lightRestoration() const { return network_->lightRestoration; }
 int Model::embeddingChannels() const { return network_->embedding->outChannels(); }
 std::int64_t Model::parameterCount() const { return network_->parameterCount; }
 Precision Model::precision() const { return network_->precision; }

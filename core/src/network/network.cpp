@@ -133,6 +133,7 @@ Network buildNetwork(const Weights& weights, Precision precision) {
     n.affinityFeatures = b.config("config.affinity_features", 1, 64);
     n.tapSize = b.config("config.kernel_size", 1, 15);
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
+    n.lightRestoration = b.flag("config.light_restoration");
     b.removedFlag("config.source_weights", "source weights");
     b.removedFlag("config.emission_lambda", "a separate emission lambda");
     b.removedFlag("config.albedo_demodulation", "albedo demodulation");

@@ -22,6 +22,9 @@ struct Network {
     std::vector<std::vector<Conv2d>> decoder;  // [level][conv], level 0 = full resolution
     std::optional<Conv2d> head;                // 1x1 convolution to headChannels()
     int kernels = 3, affinityFeatures = 8, tapSize = 5;
+    // Whether the Denoiser restores light after the kernels (config.light_restoration, docs/MODEL.md
+    // sections 8 and 10): a property of the trained weights, set where it was measured to help.
+    bool lightRestoration = false;
     std::int64_t parameterCount = 0;
     Precision precision = Precision::Float32;  // of the products (affinity/precision.h), never Auto
 

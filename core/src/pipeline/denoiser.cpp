@@ -209,7 +209,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     // The last kernel's output is the radiance (and stays the temporal kernel's history as it is).
     const float* output = history.output.data();
     std::vector<float> radiance(output, output + std::size_t(width) * std::size_t(height) * kSignalChannels);
-    if (ablation.lightRestoration) {
+    if (net.lightRestoration && ablation.lightRestoration) {
         restoreLight(frame.signal, motion, valid, useHistory, history.light, radiance.data());
         clock.mark("light restoration");
     }
