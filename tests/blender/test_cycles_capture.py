@@ -265,8 +265,10 @@ def test_deepened_references_average_more_independent_samples(
 
 #: ours / Blender's OIDN SMAPE on this sequence when it was recorded (bpy 5.0.1, the capture
 #: animating the seed): the core's built-in model 0.2036 / 0.1909 (0.1971 before, with the
-#: scene's static seed); the extension's Cycles model (backend.CYCLES_MODEL) 0.1988 / 0.1900.
-RECORDED_RATIO_TO_BLENDER = {"built-in": 1.07, "extension": 1.05}
+#: scene's static seed); the extension's Cycles model (backend.CYCLES_MODEL) 0.2078 / 0.1906 and
+#: 0.1996 / 0.1902 in two captures with its light restoration (docs/MODEL.md section 10), 0.1988 /
+#: 0.1900 without: on this 64x40 frame the restoration's windows hold few samples.
+RECORDED_RATIO_TO_BLENDER = {"built-in": 1.07, "extension": 1.09}
 
 
 @pytest.mark.parametrize("model", ["built-in", "extension"])

@@ -115,6 +115,34 @@ TEST(LightRestoration, TheRatioIsAccumulatedWhereTheHistoryIsValid) {
     EXPECT_NEAR(alone[(std::size_t(10) * width + 15) * 3], 1.0f, 1e-5f);
 }
 
+// Sparse bright samples (mostly 0, a few of 100): the input's blurred light is a noisy estimate.
+// A deficit well inside its noise is left alone; one far outside it is mostly given back.
+TEST(LightRestoration, ADeficitWithinTheInputsNoiseIsLeftAlone) {
+    const int size = 100;
+    std::mt19937 rng(7);
+    std::bernoulli_distribution firefly(0.01);
+    FeatureMap noisy(size, size, 3);
+    double total = 0.0;
+    for (int i = 0; i < size * size; ++i) {
+        const float value = firefly(rng) ? 100.0f : 0.0f;
+        for (int c = 0; c < 3; ++c) noisy.data()[i * 3 + c] = value;
+        total += value;
+    }
+    const float mean = float(total / (size * size));
+    auto gainAtCentre = [&](float outputShare) {
+        const FeatureMap output = constantRgb(size, size, outputShare * mean, outputShare * mean, outputShare * mean);
+        std::vector<float> values(output.data(), output.data() + size * size * 3);
+        LightHistory history;
+        restoreLight(noisy, nullptr, nullptr, false, history, values.data());
+        return values[(std::size_t(size / 2) * size + size / 2) * 3] / (outputShare * mean);
+    };
+    const float small = gainAtCentre(0.95f), large = gainAtCentre(0.5f);
+    EXPECT_GE(small, 1.0f);
+    EXPECT_LT(small, 1.02f);  // the unshrunk gain would be about 1.05
+    EXPECT_GT(large, 1.6f);   // about 2 unshrunk
+    EXPECT_LE(large, kLightMaxGain);
+}
+
 TEST(LightRestoration, ABlackFrameStaysBlack) {
     const FeatureMap noisy = constantRgb(16, 16, 0.0f, 0.0f, 0.0f);
     std::vector<float> output(16 * 16 * 3, 0.0f);

@@ -355,18 +355,28 @@ def test_the_module_reports_its_version() -> None:
     assert affinity_core.__version__ == match.group("value")
 
 
-def test_light_restoration_gives_a_dim_first_frame_the_noisy_inputs_light(tmp_path: pathlib.Path) -> None:
-    # On a sequence's first frame the restoration's windows hold the frame alone, and the scale
-    # of a whole dim frame is far wider than its 30-pixel blur: the output's mean light comes
-    # back to the (unbiased) input's, which the kernels alone leave (2.8 % here when written).
-    out = tmp_path / "frames"
-    subprocess.run([str(CLI), "render", "--scene", "low_light", "--frames", "1", "--spp", "2", "--size", "96x64",
-                    "--reference-spp", "0", "--out", str(out)], check=True, capture_output=True, timeout=300)
-    frame = affinity_core.read_frame(affinity_core.list_frame_files(out)[0])
-    noisy = float((frame["samples"][..., 0:3] + frame["samples"][..., 3:6]).mean())
-    model = affinity_core.Model.from_file(CYCLES_MODEL)  # its file asks for the restoration
+def test_light_restoration_gives_back_the_light_of_sparse_fireflies() -> None:
+    # A dim, evenly lit diffuse wall (0.1) whose light is half in sparse fireflies (1 % of the
+    # samples carry 5): the Cycles model's kernels leave most fireflies out (17 % of the light
+    # when written); its file asks for the light restoration, which gives the light back at a
+    # scale of 30 pixels, where 64,000 samples make the input's mean a steady estimate.
+    rng = np.random.default_rng(1)
+    height, width, spp = 160, 200, 2
+    radiance = 0.1 + (rng.random((height, width, spp)) < 0.01) * 5.0
+    samples = np.zeros((height, width, spp, 18), np.float32)
+    samples[..., 0:3] = radiance[..., None]
+    samples[..., 6:9] = (0.0, 0.0, 1.0)  # normal
+    samples[..., 9] = 3.0  # depth
+    samples[..., 10:13] = 0.5  # albedo
+    samples[..., 13] = 1.0  # roughness
+    info = {"scene_name": "fireflies on a wall", "frame_index": 0, "reference_spp": 0, "seed": 0,
+            "world_to_camera": np.eye(4, dtype=np.float32), "camera_to_clip": np.eye(4, dtype=np.float32)}
+    frame = {"samples": samples, "motion": np.zeros((height, width, 2), np.float32),
+             "valid": np.zeros((height, width), np.float32), "info": info}
+    noisy = float(radiance.mean())
+    model = affinity_core.Model.from_file(CYCLES_MODEL)
     assert model.light_restoration and not affinity_core.Model.built_in().light_restoration
     restored = float(affinity_core.Denoiser(model).denoise(frame).mean())
     kernels_only = float(affinity_core.Denoiser(model, ablation="no_light_restoration").denoise(frame).mean())
-    assert abs(restored / noisy - 1.0) < 0.005
-    assert abs(kernels_only / noisy - 1.0) > 0.015
+    assert abs(restored / noisy - 1.0) < 0.01
+    assert kernels_only / noisy < 0.95

@@ -5,7 +5,10 @@
 // darker than their references. The noisy input is unbiased: over a wide window its mean is the
 // light that belongs there. Each output pixel is scaled by the ratio of the input's to the
 // output's luminance, both blurred by a wide Gaussian and accumulated over frames along the
-// motion, the ratio kept within [1 / kLightMaxGain, kLightMaxGain].
+// motion. That ratio is itself noisy where a window holds few samples of heavy-tailed light (a
+// small or dim frame, a first frame): its excess over 1 is shrunk by d^2 / (d^2 + se^2), d the
+// excess and se the ratio's standard error estimated from the input's local variance, and the
+// gain kept within [1 / kLightMaxGain, kLightMaxGain].
 #include "kernels/feature_map.h"
 
 namespace affinity {
@@ -17,10 +20,10 @@ inline constexpr int kLightBoxRadius = 29;
 inline constexpr float kLightHistoryWeight = 0.7f;
 inline constexpr float kLightMaxGain = 2.0f;
 
-// The accumulated blurred luminances of the noisy input and of the output (one channel each),
-// carried from frame to frame.
+// The accumulated blurred luminances of the noisy input and of the output, and the variance of the
+// accumulated input (one channel each), carried from frame to frame.
 struct LightHistory {
-    FeatureMap input, output;
+    FeatureMap input, output, inputVariance;
 };
 
 // Scales `radiance` (the filtered output, height x width x 3, in place) by the restoration ratio.
