@@ -239,9 +239,12 @@ class SequenceCapture:
         self._names: dict[str, str] | None = None
         #: The last frame denoised since the history began; None with no history.
         self.last_frame: int | None = None
-        #: The scene camera of that frame: another one (a cut by camera markers) starts a new
+        #: The scene camera of that frame, where it was, and the mean depth it saw: another
+        #: camera (a cut by camera markers) or a jump of this one (motion.is_cut) starts a new
         #: sequence, pre-rolled like the first.
         self._camera_name: str | None = None
+        self._camera: motion.Camera | None = None
+        self._mean_depth = 0.0
 
     def reset(self) -> None:
         """Forgets the history: the next frame starts a new sequence."""
@@ -249,6 +252,7 @@ class SequenceCapture:
         self._previous = None
         self.last_frame = None
         self._camera_name = None
+        self._camera = None
 
     def frame(self, frame: int,
               before_sample: Callable[[int], None] | None = None) -> Generator[int, None, DenoisedFrame]:
@@ -258,10 +262,11 @@ class SequenceCapture:
 
         scene, spp = self.scene, self.settings.samples_per_frame
         scene.frame_set(frame)
-        if self._camera_name is not None and scene.camera.name != self._camera_name:
-            self.reset()  # a camera cut: nothing before it is history
         depsgraph = bpy.context.evaluated_depsgraph_get()
         camera = motion.scene_camera(scene, depsgraph)
+        if self._camera_name is not None and (scene.camera.name != self._camera_name or (
+                self._camera is not None and motion.is_cut(self._camera, camera, self._mean_depth))):
+            self.reset()  # a camera cut: nothing before it is history
         start = time.perf_counter()
         transforms = motion.object_transforms(depsgraph)
         self.timings.motion.append(time.perf_counter() - start)
@@ -283,6 +288,7 @@ class SequenceCapture:
         sums: dict[str, np.ndarray] = {}
         first: dict[str, np.ndarray] = {}
         geometry = None
+        mean_depth = 0.0  # of sample 0's hits: what the next frame's cut test measures a move by
         for sample in range(spp):
             if before_sample is not None:
                 before_sample(sample)
@@ -299,6 +305,8 @@ class SequenceCapture:
                 samples[:, :, sample] = sample_features
             if sample == 0:  # Cycles writes Z for the sample at offset 0 only
                 geometry = self._geometry(captured, names, camera, transforms)
+                depth = sample_features[..., features.DEPTH]
+                mean_depth = float(depth[depth > 0.0].mean()) if (depth > 0.0).any() else 0.0
             else:
                 assert geometry is not None
                 geometry.add_surfaces(captured[names["aov_distance"]][..., 0],
@@ -339,6 +347,7 @@ class SequenceCapture:
                                f"expected {noisy.shape}")
         self.last_frame = frame
         self._camera_name = scene.camera.name
+        self._camera, self._mean_depth = camera, mean_depth
         combined_name = passes.PASS_NAMES["combined"][0]
         alpha = mean[combined_name][..., 3:4] if combined_name in mean else np.ones_like(noisy[..., :1])
         rgba = np.concatenate([denoised, alpha], axis=-1)

@@ -3,6 +3,7 @@ checked against plain Cycles renders, the feature schema and the user's data."""
 
 from __future__ import annotations
 
+import math
 import os
 from typing import Any
 
@@ -12,7 +13,7 @@ import pytest
 import scenes
 from conftest import CORE_IO_AVAILABLE, capture, material_snapshot
 
-from affinity_denoiser import backend, compositor, features, passes, pipeline
+from affinity_denoiser import backend, compositor, features, motion, passes, pipeline
 
 REFERENCE_SPP = 256
 
@@ -461,6 +462,51 @@ def test_a_camera_cut_starts_a_new_sequence_with_its_own_preroll(tmp_path: Any) 
     assert len(cut.timings.sub_renders) == 3 * 2 + 2 * 2
     assert not plain.results[1].frame_data["valid"].all() or plain.results[1].frame_data["motion"].any()
     assert cut.results[2].frame_data["motion"].any()  # frame 3 moves on from frame 2
+
+
+def test_a_jump_of_one_camera_is_a_cut_too(tmp_path: Any) -> None:
+    """The same camera turned by 90 degrees at frame 2 (a keyframe, as cuts are often animated):
+    frame 2 is pre-rolled like a first frame; turning by 2 degrees a frame, as the scene's
+    camera does, is not a cut."""
+    scene = scenes.build_scene(frames=3)
+    camera = scene.camera
+
+    def run(turn_at_frame_2: float) -> pipeline.DenoiseRender:
+        for frame, turn in ((2, turn_at_frame_2), (3, turn_at_frame_2 + 2.0)):
+            scene.frame_set(frame)
+            camera.rotation_euler = (math.radians(70.0), 0.0, math.radians(turn))
+            camera.keyframe_insert("rotation_euler", frame=frame)
+        scene.render.filepath = str(tmp_path / f"turn{turn_at_frame_2}" / "frame_")
+        job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
+                                     pipeline.Settings(samples_per_frame=2, preroll_frames=1, preroll_samples=2))
+        job.keep_frames = True
+        job.run()
+        return job
+
+    turned, steady = run(90.0), run(2.0)
+    assert [len(r.preroll_data) for r in turned.results] == [1, 1, 0]
+    assert [len(r.preroll_data) for r in steady.results] == [1, 0, 0]
+    after_jump = turned.results[1].frame_data
+    assert after_jump["valid"].all() and not after_jump["motion"].any()
+
+
+def test_a_cut_is_a_turn_past_45_degrees_or_a_move_past_half_the_depth() -> None:
+    def camera(degrees: float, x: float) -> motion.Camera:
+        angle = math.radians(degrees)
+        to_world = np.eye(4)
+        to_world[:3, :3] = [[math.cos(angle), -math.sin(angle), 0.0], [math.sin(angle), math.cos(angle), 0.0],
+                            [0.0, 0.0, 1.0]]
+        to_world[:3, :3] = to_world[:3, :3] @ [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]  # look along +y
+        to_world[0, 3] = x
+        return motion.Camera(np.linalg.inv(to_world), np.eye(4), 8, 8, False, 0.1)
+
+    start = camera(0.0, 0.0)
+    assert not motion.is_cut(start, camera(44.0, 0.0), 10.0)
+    assert motion.is_cut(start, camera(46.0, 0.0), 10.0)
+    assert motion.is_cut(start, camera(-46.0, 0.0), 0.0)  # the turn counts without a depth
+    assert not motion.is_cut(start, camera(0.0, 4.9), 10.0)
+    assert motion.is_cut(start, camera(0.0, 5.1), 10.0)
+    assert not motion.is_cut(start, camera(0.0, 50.0), 0.0)  # nothing hit: no scale to judge a move
 
 
 def test_a_preroll_out_of_range_is_refused() -> None:
