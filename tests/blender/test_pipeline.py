@@ -428,6 +428,16 @@ def test_preroll_frames_have_their_own_sample_count(tmp_path: Any) -> None:
     assert np.abs(kept[3] - kept[None]).mean() > 1e-4  # the pre-roll's samples count
 
 
+def run_with_one_preroll_frame(scene: Any, folder: Any) -> pipeline.DenoiseRender:
+    """Frames 1-3 at 2 samples, a pre-roll of one 2-sample frame, the frames' data kept."""
+    scene.render.filepath = str(folder / "frame_")
+    job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
+                                 pipeline.Settings(samples_per_frame=2, preroll_frames=1, preroll_samples=2))
+    job.keep_frames = True
+    job.run()
+    return job
+
+
 def test_a_camera_cut_starts_a_new_sequence_with_its_own_preroll(tmp_path: Any) -> None:
     """A cut (camera markers switch the scene camera at frame 2): frame 2 has no history from
     frame 1's camera and is pre-rolled like a first frame (zero motion, all valid after its
@@ -447,12 +457,7 @@ def test_a_camera_cut_starts_a_new_sequence_with_its_own_preroll(tmp_path: Any) 
             scene.timeline_markers.new("A", frame=1).camera = first
             scene.timeline_markers.new("B", frame=2).camera = second
         scene.camera = first
-        scene.render.filepath = str(tmp_path / f"cut{cut}" / "frame_")
-        job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
-                                     pipeline.Settings(samples_per_frame=2, preroll_frames=1, preroll_samples=2))
-        job.keep_frames = True
-        job.run()
-        return job
+        return run_with_one_preroll_frame(scene, tmp_path / f"cut{cut}")
 
     cut, plain = run(True), run(False)
     assert [len(r.preroll_data) for r in cut.results] == [1, 1, 0]
@@ -476,12 +481,7 @@ def test_a_jump_of_one_camera_is_a_cut_too(tmp_path: Any) -> None:
             scene.frame_set(frame)
             camera.rotation_euler = (math.radians(70.0), 0.0, math.radians(turn))
             camera.keyframe_insert("rotation_euler", frame=frame)
-        scene.render.filepath = str(tmp_path / f"turn{turn_at_frame_2}" / "frame_")
-        job = pipeline.DenoiseRender(scene, scene.view_layers[0], [1, 2, 3],
-                                     pipeline.Settings(samples_per_frame=2, preroll_frames=1, preroll_samples=2))
-        job.keep_frames = True
-        job.run()
-        return job
+        return run_with_one_preroll_frame(scene, tmp_path / f"turn{turn_at_frame_2}")
 
     turned, steady = run(90.0), run(2.0)
     assert [len(r.preroll_data) for r in turned.results] == [1, 1, 0]

@@ -87,8 +87,8 @@ FeatureMap blurredVariance(const FeatureMap& Y) {
         local.data()[p] = difference * difference;
     }
     blurForLight(local);
-    const int reach = kBoxPasses * kLightBoxRadius;
-    auto inside = [reach](int i, int n) {
+    auto inside = [](int i, int n) {
+        constexpr int reach = kBoxPasses * kLightBoxRadius;
         return float(std::min(n - 1, i + reach) - std::max(0, i - reach) + 1) / float(2 * reach + 1);
     };
     const float window = 4.0f * 3.14159265f * float(kLightBoxRadius) * float(kLightBoxRadius + 1);
