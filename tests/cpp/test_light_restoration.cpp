@@ -56,7 +56,8 @@ TEST(LightRestoration, BlurMatchesThreeDirectBoxPasses) {
     FeatureMap expected = map;
     for (int pass = 0; pass < 3; ++pass)
         expected = directBox(directBox(expected, kLightBoxRadius, true), kLightBoxRadius, false);
-    blurForLight(map);
+    FeatureMapPool pool;
+    blurForLight(map, pool);
     for (int i = 0; i < 70 * 90; ++i) ASSERT_NEAR(map.data()[i], expected.data()[i], 1e-4f) << "pixel " << i;
 }
 
@@ -66,7 +67,8 @@ TEST(LightRestoration, BlurKeepsAnImpulsesLightAwayFromTheBorders) {
     FeatureMap map(size, size, 1);
     std::fill(map.data(), map.data() + size * size, 0.0f);
     *map.pixel(size / 2, size / 2) = 1.0f;
-    blurForLight(map);
+    FeatureMapPool pool;
+    blurForLight(map, pool);
     double total = 0.0;
     for (int i = 0; i < size * size; ++i) total += map.data()[i];
     EXPECT_NEAR(total, 1.0, 1e-5);
@@ -82,13 +84,14 @@ TEST(LightRestoration, AnEvenlyDimmedOutputGetsTheInputsLightBack) {
     const FeatureMap noisy = constantRgb(40, 50, 0.2f, 0.5f, 0.1f);
     std::vector<float> output = scaled(noisy, 0.8f);
     LightHistory history;
-    restoreLight(noisy, nullptr, nullptr, false, history, output.data());
+    FeatureMapPool pool;
+    restoreLight(noisy, nullptr, nullptr, false, history, output.data(), pool);
     for (std::size_t i = 0; i < output.size(); ++i)
         ASSERT_NEAR(output[i], noisy.data()[i], kFloorTolerance * noisy.data()[i]) << i;
     // An output with none of the light gets at most kLightMaxGain; a brighter one is dimmed.
     std::vector<float> dark = scaled(noisy, 0.1f), bright = scaled(noisy, 1.25f);
-    restoreLight(noisy, nullptr, nullptr, false, history, dark.data());
-    restoreLight(noisy, nullptr, nullptr, false, history, bright.data());
+    restoreLight(noisy, nullptr, nullptr, false, history, dark.data(), pool);
+    restoreLight(noisy, nullptr, nullptr, false, history, bright.data(), pool);
     EXPECT_NEAR(dark[1], 0.5f * 0.1f * kLightMaxGain, 1e-6f);
     EXPECT_NEAR(bright[1], 0.5f, kFloorTolerance * 0.5f);
 }
@@ -100,10 +103,11 @@ TEST(LightRestoration, TheRatioIsAccumulatedWhereTheHistoryIsValid) {
     std::vector<float> valid(std::size_t(height) * width, 1.0f);
     for (int x = 0; x < width; ++x) valid[std::size_t(x)] = 0.0f;  // row 0: disoccluded
     LightHistory history;
+    FeatureMapPool pool;
     std::vector<float> first = scaled(noisy, 0.8f);
-    restoreLight(noisy, motion.data(), valid.data(), false, history, first.data());
+    restoreLight(noisy, motion.data(), valid.data(), false, history, first.data(), pool);
     std::vector<float> second = scaled(noisy, 1.0f);  // this frame's output has all the light
-    restoreLight(noisy, motion.data(), valid.data(), true, history, second.data());
+    restoreLight(noisy, motion.data(), valid.data(), true, history, second.data(), pool);
     // Input 1 on both frames; output 0.8 then 1, weighted kLightHistoryWeight and the rest.
     const float w = kLightHistoryWeight;
     const float expected = 1.0f / (w * 0.8f + (1.0f - w) * 1.0f);
@@ -111,7 +115,7 @@ TEST(LightRestoration, TheRatioIsAccumulatedWhereTheHistoryIsValid) {
     EXPECT_NEAR(second[std::size_t(15) * 3], 1.0f, 1e-5f);  // row 0 starts afresh
     // Without the history, or after a size change, the frame stands alone.
     std::vector<float> alone = scaled(noisy, 1.0f);
-    restoreLight(noisy, motion.data(), valid.data(), false, history, alone.data());
+    restoreLight(noisy, motion.data(), valid.data(), false, history, alone.data(), pool);
     EXPECT_NEAR(alone[(std::size_t(10) * width + 15) * 3], 1.0f, 1e-5f);
 }
 
@@ -133,7 +137,8 @@ TEST(LightRestoration, ADeficitWithinTheInputsNoiseIsLeftAlone) {
         const FeatureMap output = constantRgb(size, size, outputShare * mean, outputShare * mean, outputShare * mean);
         std::vector<float> values(output.data(), output.data() + size * size * 3);
         LightHistory history;
-        restoreLight(noisy, nullptr, nullptr, false, history, values.data());
+        FeatureMapPool pool;
+        restoreLight(noisy, nullptr, nullptr, false, history, values.data(), pool);
         return values[(std::size_t(size / 2) * size + size / 2) * 3] / (outputShare * mean);
     };
     const float small = gainAtCentre(0.95f), large = gainAtCentre(0.5f);
@@ -147,7 +152,8 @@ TEST(LightRestoration, ABlackFrameStaysBlack) {
     const FeatureMap noisy = constantRgb(16, 16, 0.0f, 0.0f, 0.0f);
     std::vector<float> output(16 * 16 * 3, 0.0f);
     LightHistory history;
-    restoreLight(noisy, nullptr, nullptr, false, history, output.data());
+    FeatureMapPool pool;
+    restoreLight(noisy, nullptr, nullptr, false, history, output.data(), pool);
     for (float v : output) ASSERT_EQ(v, 0.0f);
 }
 

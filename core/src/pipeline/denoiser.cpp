@@ -210,7 +210,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     const float* output = history.output.data();
     std::vector<float> radiance(output, output + std::size_t(width) * std::size_t(height) * kSignalChannels);
     if (net.lightRestoration && ablation.lightRestoration) {
-        restoreLight(frame.signal, motion, valid, useHistory, history.light, radiance.data());
+        restoreLight(frame.signal, motion, valid, useHistory, history.light, radiance.data(), pool);
         clock.mark("light restoration");
     }
     pool.give(frame.signal);

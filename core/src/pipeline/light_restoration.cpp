@@ -17,54 +17,80 @@ constexpr int kLocalMeanRadius = 2;
 
 float luminance(const float* rgb) { return 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2]; }
 
-// out[i] = mean of in[j * stride] over |j - i| <= radius inside [0, n): a running sum (in double,
-// so that adding and taking away values does not drift).
-void boxLine(const float* in, std::size_t stride, int n, int radius, float* out) {
-    double sum = 0.0;
-    const int first = std::min(radius, n - 1);
-    for (int j = 0; j <= first; ++j) sum += in[std::size_t(j) * stride];
-    for (int i = 0; i < n; ++i) {
-        const int low = std::max(0, i - radius), high = std::min(n - 1, i + radius);
-        out[i] = float(sum / double(high - low + 1));
-        if (i + radius + 1 < n) sum += in[std::size_t(i + radius + 1) * stride];
-        if (i - radius >= 0) sum -= in[std::size_t(i - radius) * stride];
-    }
+// Each output pixel the mean of the inputs within `radius` along the axis that lie inside the
+// image, from running sums in double (adding and taking away values does not drift), one sum per
+// lane: a block of kRowBlock rows, or of kColumnBlock columns, moves along together, so that the
+// sums' additions do not wait on one another and every access runs along a row.
+constexpr int kRowBlock = 8;
+
+// 1 / (pixels inside the window at i), n pixels along the axis.
+double inverseCount(int i, int n, int radius) {
+    return 1.0 / double(std::min(n - 1, i + radius) - std::max(0, i - radius) + 1);
 }
 
-void boxRows(FeatureMap& map, int radius) {
-    const int width = map.width();
-#pragma omp parallel
-    {
-        std::vector<float> line(static_cast<std::size_t>(width));
-#pragma omp for schedule(static)
-        for (int y = 0; y < map.height(); ++y) {
-            float* row = map.pixel(y, 0);
-            boxLine(row, 1, width, radius, line.data());
-            std::copy(line.begin(), line.end(), row);
+// `result` (the same size as `map`) gets map's rows boxed.
+void boxRows(const FeatureMap& map, int radius, FeatureMap& result) {
+    const int width = map.width(), height = map.height();
+    const int blocks = (height + kRowBlock - 1) / kRowBlock;
+#pragma omp parallel for schedule(static)
+    for (int block = 0; block < blocks; ++block) {
+        const int first = block * kRowBlock, count = std::min(height, first + kRowBlock) - first;
+        const float* in[kRowBlock];
+        float* out[kRowBlock];
+        for (int k = 0; k < kRowBlock; ++k) {
+            const int y = first + std::min(k, count - 1);  // a short last block repeats its last row
+            in[k] = map.pixel(y, 0);
+            out[k] = result.pixel(y, 0);
+        }
+        double sums[kRowBlock] = {};
+        for (int x = 0; x <= std::min(radius, width - 1); ++x)
+            for (int k = 0; k < kRowBlock; ++k) sums[k] += in[k][x];
+        for (int x = 0; x < width; ++x) {
+            const double inverse = inverseCount(x, width, radius);
+            for (int k = 0; k < kRowBlock; ++k) out[k][x] = float(sums[k] * inverse);
+            if (x + radius + 1 < width)
+                for (int k = 0; k < kRowBlock; ++k) sums[k] += in[k][x + radius + 1];
+            if (x - radius >= 0)
+                for (int k = 0; k < kRowBlock; ++k) sums[k] -= in[k][x - radius];
         }
     }
 }
 
-void boxColumns(FeatureMap& map, int radius) {
+// The same along the columns.
+void boxColumns(const FeatureMap& map, int radius, FeatureMap& result) {
     const int width = map.width(), height = map.height();
     const int blocks = (width + kColumnBlock - 1) / kColumnBlock;
 #pragma omp parallel
     {
-        std::vector<float> line(static_cast<std::size_t>(height));
+        std::vector<double> sums(static_cast<std::size_t>(kColumnBlock));
 #pragma omp for schedule(static)
         for (int block = 0; block < blocks; ++block) {
-            const int end = std::min(width, (block + 1) * kColumnBlock);
-            for (int x = block * kColumnBlock; x < end; ++x) {
-                boxLine(map.pixel(0, x), std::size_t(width), height, radius, line.data());
-                for (int y = 0; y < height; ++y) *map.pixel(y, x) = line[std::size_t(y)];
+            const int first = block * kColumnBlock, count = std::min(width, first + kColumnBlock) - first;
+            std::fill(sums.begin(), sums.end(), 0.0);
+            for (int y = 0; y <= std::min(radius, height - 1); ++y) {
+                const float* row = map.pixel(y, first);
+                for (int i = 0; i < count; ++i) sums[std::size_t(i)] += row[i];
+            }
+            for (int y = 0; y < height; ++y) {
+                const double inverse = inverseCount(y, height, radius);
+                float* out = result.pixel(y, first);
+                for (int i = 0; i < count; ++i) out[i] = float(sums[std::size_t(i)] * inverse);
+                if (y + radius + 1 < height) {
+                    const float* entering = map.pixel(y + radius + 1, first);
+                    for (int i = 0; i < count; ++i) sums[std::size_t(i)] += entering[i];
+                }
+                if (y - radius >= 0) {
+                    const float* leaving = map.pixel(y - radius, first);
+                    for (int i = 0; i < count; ++i) sums[std::size_t(i)] -= leaving[i];
+                }
             }
         }
     }
 }
 
 // A one-channel map of the luminance of a 3-channel one.
-FeatureMap luminanceMap(const float* rgb, int height, int width) {
-    FeatureMap map(height, width, 1);
+FeatureMap luminanceMap(const float* rgb, int height, int width, FeatureMapPool& pool) {
+    FeatureMap map = pool.take(height, width, 1);
     const std::size_t pixels = std::size_t(height) * std::size_t(width);
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) map.data()[p] = luminance(rgb + std::size_t(p) * 3);
@@ -75,18 +101,19 @@ FeatureMap luminanceMap(const float* rgb, int height, int width) {
 // squared difference to the mean of its 5 x 5 neighbours (texture and edges count as noise too,
 // which only shrinks the gain more), blurred, over the pixels a window averages: a Gaussian of
 // deviation s averages about 4 pi s^2 pixels' worth, less the share of it outside the image.
-FeatureMap blurredVariance(const FeatureMap& Y) {
+FeatureMap blurredVariance(const FeatureMap& Y, FeatureMapPool& pool) {
     const int height = Y.height(), width = Y.width();
-    FeatureMap local = Y;
-    boxRows(local, kLocalMeanRadius);
-    boxColumns(local, kLocalMeanRadius);
+    FeatureMap rows = pool.take(height, width, 1), local = pool.take(height, width, 1);
+    boxRows(Y, kLocalMeanRadius, rows);
+    boxColumns(rows, kLocalMeanRadius, local);
+    pool.give(rows);
     const std::size_t pixels = std::size_t(height) * std::size_t(width);
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) {
         const float difference = Y.data()[p] - local.data()[p];
         local.data()[p] = difference * difference;
     }
-    blurForLight(local);
+    blurForLight(local, pool);
     auto inside = [](int i, int n) {
         constexpr int reach = kBoxPasses * kLightBoxRadius;
         return float(std::min(n - 1, i + reach) - std::max(0, i - reach) + 1) / float(2 * reach + 1);
@@ -101,8 +128,8 @@ FeatureMap blurredVariance(const FeatureMap& Y) {
 // accumulated = w * warped previous + (1 - w) * current where valid, current elsewhere; with
 // `squared` the weights squared: the variance of that sum of independent estimates.
 void accumulate(const FeatureMap& previous, const float* motion, const float* valid, FeatureMap& current,
-                bool squared = false) {
-    FeatureMap warped(current.height(), current.width(), 1);
+                FeatureMapPool& pool, bool squared = false) {
+    FeatureMap warped = pool.take(current.height(), current.width(), 1);
     warpBilinear(previous, motion, warped);
     const float w = kLightHistoryWeight, rest = 1.0f - kLightHistoryWeight;
     const float old = squared ? w * w : w, fresh = squared ? rest * rest : rest;
@@ -111,30 +138,33 @@ void accumulate(const FeatureMap& previous, const float* motion, const float* va
     for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) {
         if (valid[p] > 0.5f) current.data()[p] = old * warped.data()[p] + fresh * current.data()[p];
     }
+    pool.give(warped);
 }
 
 }  // namespace
 
-void blurForLight(FeatureMap& map) {
+void blurForLight(FeatureMap& map, FeatureMapPool& pool) {
+    FeatureMap scratch = pool.take(map.height(), map.width(), 1);
     for (int pass = 0; pass < kBoxPasses; ++pass) {
-        boxRows(map, kLightBoxRadius);
-        boxColumns(map, kLightBoxRadius);
+        boxRows(map, kLightBoxRadius, scratch);
+        boxColumns(scratch, kLightBoxRadius, map);
     }
+    pool.give(scratch);
 }
 
 void restoreLight(const FeatureMap& noisy, const float* motion, const float* valid, bool useHistory,
-                  LightHistory& history, float* radiance) {
+                  LightHistory& history, float* radiance, FeatureMapPool& pool) {
     const int height = noisy.height(), width = noisy.width();
-    FeatureMap input = luminanceMap(noisy.data(), height, width);
-    FeatureMap variance = blurredVariance(input);
-    blurForLight(input);
-    FeatureMap output = luminanceMap(radiance, height, width);
-    blurForLight(output);
+    FeatureMap input = luminanceMap(noisy.data(), height, width, pool);
+    FeatureMap variance = blurredVariance(input, pool);
+    blurForLight(input, pool);
+    FeatureMap output = luminanceMap(radiance, height, width, pool);
+    blurForLight(output, pool);
     const bool continues = useHistory && history.input.height() == height && history.input.width() == width;
     if (continues) {
-        accumulate(history.input, motion, valid, input);
-        accumulate(history.output, motion, valid, output);
-        accumulate(history.inputVariance, motion, valid, variance, true);
+        accumulate(history.input, motion, valid, input, pool);
+        accumulate(history.output, motion, valid, output, pool);
+        accumulate(history.inputVariance, motion, valid, variance, pool, true);
     }
     const std::size_t pixels = std::size_t(height) * std::size_t(width);
     double meanInput = 0.0;
@@ -152,6 +182,8 @@ void restoreLight(const FeatureMap& noisy, const float* motion, const float* val
         const float gain = std::clamp(1.0f + excess * shrink, 1.0f / kLightMaxGain, kLightMaxGain);
         for (int c = 0; c < 3; ++c) radiance[std::size_t(p) * 3 + std::size_t(c)] *= gain;
     }
+    for (FeatureMap* kept : {&history.input, &history.output, &history.inputVariance})
+        if (kept->height() > 0) pool.give(*kept);  // read: their memory serves the next frame
     history.input = std::move(input);
     history.output = std::move(output);
     history.inputVariance = std::move(variance);

@@ -10,6 +10,7 @@
 // excess and se the ratio's standard error estimated from the input's local variance, and the
 // gain kept within [1 / kLightMaxGain, kLightMaxGain].
 #include "kernels/feature_map.h"
+#include "pipeline/feature_map_pool.h"
 
 namespace affinity {
 
@@ -29,12 +30,13 @@ struct LightHistory {
 // Scales `radiance` (the filtered output, height x width x 3, in place) by the restoration ratio.
 // noisy: the frame's noisy radiance (height x width x 3). With `useHistory` (and a history of this
 // size), the accumulations are warped by `motion` and blended where `valid`; else they start
-// from this frame. Leaves this frame's accumulations in `history`.
+// from this frame. Leaves this frame's accumulations in `history`. Its maps come from `pool`
+// (the history's too, and the last frame's go back to it).
 void restoreLight(const FeatureMap& noisy, const float* motion, const float* valid, bool useHistory,
-                  LightHistory& history, float* radiance);
+                  LightHistory& history, float* radiance, FeatureMapPool& pool);
 
 // The three-box blur above on a one-channel map, in place, each box averaging the pixels inside
 // the image (no padding): exposed for its tests.
-void blurForLight(FeatureMap& map);
+void blurForLight(FeatureMap& map, FeatureMapPool& pool);
 
 }  // namespace affinity
