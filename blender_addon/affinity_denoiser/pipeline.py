@@ -264,8 +264,8 @@ class SequenceCapture:
         scene.frame_set(frame)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         camera = motion.scene_camera(scene, depsgraph)
-        if self._camera_name is not None and (scene.camera.name != self._camera_name or (
-                self._camera is not None and motion.is_cut(self._camera, camera, self._mean_depth))):
+        if self._camera is not None and (scene.camera.name != self._camera_name
+                                         or motion.is_cut(self._camera, camera, self._mean_depth)):
             self.reset()  # a camera cut: nothing before it is history
         start = time.perf_counter()
         transforms = motion.object_transforms(depsgraph)

@@ -13,9 +13,9 @@
 #include "network/filter_signal.h"
 #include "network/network.h"
 #include "pipeline/ablation.h"
-#include "pipeline/light_restoration.h"
 #include "pipeline/feature_map_pool.h"
 #include "pipeline/frame_input.h"
+#include "pipeline/light_restoration.h"
 #include "pipeline/sequence_history.h"
 #include "pipeline/stages.h"
 

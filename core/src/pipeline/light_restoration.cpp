@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "kernels/bilinear_warp.h"
+#include "kernels/luminance.h"
 
 namespace affinity {
 namespace {
@@ -14,8 +15,6 @@ constexpr int kBoxPasses = 3;
 constexpr int kColumnBlock = 64;  // columns per work item of the vertical pass
 // The local mean a pixel's noise is measured against: one box pass of this radius per axis.
 constexpr int kLocalMeanRadius = 2;
-
-float luminance(const float* rgb) { return 0.2126f * rgb[0] + 0.7152f * rgb[1] + 0.0722f * rgb[2]; }
 
 // Each output pixel the mean of the inputs within `radius` along the axis that lie inside the
 // image, from running sums in double (adding and taking away values does not drift), one sum per

@@ -13,13 +13,13 @@
 
 #include "affinity/error.h"
 #include "kernels/fast_exp.h"
+#include "kernels/luminance.h"
 
 namespace affinity {
 namespace {
 
 constexpr int kLanes = 8;
-// Rec. 709 luminance, as in the paper's implementation.
-constexpr float kLumaR = 0.2126f, kLumaG = 0.7152f, kLumaB = 0.0722f;
+// Rec. 709 luminance (kernels/luminance.h), as in the paper's implementation.
 // Illumination is clamped here so that squared luminances and their sums stay finite.
 constexpr float kMaxIllumination = 1e18f;
 // Edge-stopping denominators: epsilon of the depth term relative to the pixel's depth (our
