@@ -159,11 +159,13 @@ class Denoiser:
     ``ablation`` switches off one part of the trained pipeline, for measuring what it buys:
     "single_frame" (no history: every frame denoised on its own), "no_temporal_kernel" (the
     last kernel has no taps into the previous output), "one_kernel" (only the last, widest
-    kernel filters) or "no_light_restoration" (the kernels' output without the coarse light
-    restoration after them). None runs the whole pipeline.
+    kernel filters), "no_light_restoration" (the kernels' output without the coarse light
+    restoration after them) or "no_input_fallback" (without the move back toward the noisy input
+    where the output departs from it by more than its noise explains). None runs the whole
+    pipeline.
     """
 
-    ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel", "no_light_restoration")
+    ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel", "no_light_restoration", "no_input_fallback")
 
     def __init__(
         self,
@@ -185,6 +187,7 @@ class Denoiser:
             temporal_kernel=ablation != "no_temporal_kernel",
             all_kernels=ablation != "one_kernel",
             light_restoration=ablation != "no_light_restoration",
+            input_fallback=ablation != "no_input_fallback",
         )
         #: What the last call did: invalid_radiance (NaN/Inf/negative values read as 0),
         #: used_history, reset_reason, exposure (the factor on the radiance the network saw, set by

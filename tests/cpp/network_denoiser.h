@@ -1,6 +1,7 @@
 #pragma once
-// The trained network alone, without the light restoration the Denoiser runs after it
-// (docs/MODEL.md section 10): what the training framework computes, for the parity tests.
+// The trained network alone, without the light restoration and the input fallback the Denoiser
+// runs after it (docs/MODEL.md sections 10-11): what the training framework computes, for the
+// parity tests.
 #include <string>
 
 #include "affinity/denoiser.h"
@@ -9,7 +10,8 @@
 namespace affinity::test {
 
 inline Denoiser networkDenoiser(const std::string& weightsPath) {
-    return ablatedDenoiser(Model::fromFile(weightsPath, Precision::Float32), {.lightRestoration = false});
+    return ablatedDenoiser(Model::fromFile(weightsPath, Precision::Float32),
+                           {.lightRestoration = false, .inputFallback = false});
 }
 
 }  // namespace affinity::test

@@ -51,14 +51,19 @@ TEST(SampleSums, AreTheSanitisedSumsOfTheDiffuseAndSpecularLightOfAllSamples) {
     FeatureMap embedding, sums;
     oneLayerEmbedding().apply(samples.data(), height, width, spp, 1.0f, embedding, &sums);
     ASSERT_EQ(sums.channels(), Embedding::kSampleSumChannels);
-    ASSERT_EQ(Embedding::kSampleSumChannels, 6);
+    ASSERT_EQ(Embedding::kSampleSumChannels, 7);
     for (int p = 0; p < pixels; ++p) {
-        float expected[6] = {};
+        float expected[7] = {};
         for (int s = 0; s < spp; ++s) {
             const float* f = samples.data() + (std::size_t(p) * spp + s) * kFeatureCount;
             for (int c = 0; c < 6; ++c) expected[c] += clean(f[c]);
+            // Rec. 709 luminance of diffuse + specular, squared.
+            const double y = 0.2126 * (clean(f[0]) + clean(f[3])) + 0.7152 * (clean(f[1]) + clean(f[4])) +
+                             0.0722 * (clean(f[2]) + clean(f[5]));
+            expected[6] += float(y * y);
         }
-        for (int c = 0; c < 6; ++c) EXPECT_EQ(sums.data()[p * 6 + c], expected[c]) << "pixel " << p << " sum " << c;
+        for (int c = 0; c < 6; ++c) EXPECT_EQ(sums.data()[p * 7 + c], expected[c]) << "pixel " << p << " sum " << c;
+        EXPECT_NEAR(sums.data()[p * 7 + 6], expected[6], 1e-5 * expected[6] + 1e-30) << "pixel " << p;
     }
 }
 
@@ -92,10 +97,26 @@ TEST(FilterSignal, RadianceIsTheMeanOfAllTheLight) {
     EXPECT_FLOAT_EQ(signal.data()[2], 4.0f);
 }
 
+TEST(MeanSquares, AreTheMeanOfTheSamplesSquaredLuminance) {
+    // Three samples of luminance 1, 2 and 6 (grey light split between diffuse and specular).
+    FeatureMap sums(1, 1, Embedding::kSampleSumChannels);
+    const float values[] = {5, 5, 5, 4, 4, 4, 1 + 4 + 36};
+    std::copy(std::begin(values), std::end(values), sums.data());
+    FeatureMap meanSquares;
+    makeMeanSquares(sums, 3, meanSquares);
+    ASSERT_EQ(meanSquares.channels(), 1);
+    EXPECT_FLOAT_EQ(meanSquares.data()[0], 41.0f / 3.0f);
+    // Squares that overflowed stay finite (the box sums that read them could not take an infinity).
+    sums.data()[6] = std::numeric_limits<float>::infinity();
+    makeMeanSquares(sums, 3, meanSquares);
+    EXPECT_EQ(meanSquares.data()[0], 1e30f);
+}
+
 TEST(FilterSignal, RejectsWrongChannelCounts) {
     FeatureMap signal;
     EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, 9), 1, signal), Error);
     EXPECT_THROW(makeAccumulatedSignal(FeatureMap(2, 2, Embedding::kSampleSumChannels), 0, signal), Error);
+    EXPECT_THROW(makeMeanSquares(FeatureMap(2, 2, 6), 2, signal), Error);
 }
 
 }  // namespace

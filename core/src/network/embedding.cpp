@@ -11,6 +11,7 @@
 #include "kernels/aligned_allocator.h"
 #include "kernels/fast_exp.h"
 #include "kernels/fast_log1p.h"
+#include "kernels/luminance.h"
 
 namespace affinity {
 namespace {
@@ -70,21 +71,29 @@ long long prepareSamples(const float* samples, int count, InputScales scales, fl
 }
 
 // Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (diffuse and specular RGB of
-// the sanitised `radiance`) over its spp samples in order to `sums`, starting from 0 when
-// `first`: one 8-lane add per sample (6 lanes used). `radiance` must have 2 readable floats past
-// its last sample.
+// the sanitised `radiance`, and the squared luminance) over its spp samples in order to `sums`,
+// starting from 0 when `first`: one 8-lane add per sample (6 lanes used). `radiance` must have 2
+// readable floats past its last sample.
 void addSampleSums(const float* radiance, int pixels, int spp, bool first, float* sums) {
     constexpr int kSums = Embedding::kSampleSumChannels;
-    static_assert(Embedding::kSumDiffuse == 0 && Embedding::kSumSpecular == 3 && kSums == kRadianceChannels,
-                  "the sums are laid out as a sample's radiance");
+    static_assert(Embedding::kSumDiffuse == 0 && Embedding::kSumSpecular == 3 &&
+                      Embedding::kSumLuminanceSquares == kRadianceChannels && kSums == kRadianceChannels + 1,
+                  "the sums are laid out as a sample's radiance, then the squares");
     for (int p = 0; p < pixels; ++p) {
         float* o = sums + std::size_t(p) * kSums;
         Vec8f sum{};
+        float squares = first ? 0.0f : o[Embedding::kSumLuminanceSquares];
         if (!first)
-            for (int c = 0; c < kSums; ++c) sum[c] = o[c];
-        for (int s = 0; s < spp; ++s)
-            sum += load8(radiance + (std::size_t(p) * spp + std::size_t(s)) * kRadianceChannels);
-        for (int c = 0; c < kSums; ++c) o[c] = sum[c];
+            for (int c = 0; c < kRadianceChannels; ++c) sum[c] = o[c];
+        for (int s = 0; s < spp; ++s) {
+            const float* sample = radiance + (std::size_t(p) * spp + std::size_t(s)) * kRadianceChannels;
+            sum += load8(sample);
+            const float light[3] = {sample[0] + sample[3], sample[1] + sample[4], sample[2] + sample[5]};
+            const float y = luminance(light);
+            squares += y * y;
+        }
+        for (int c = 0; c < kRadianceChannels; ++c) o[c] = sum[c];
+        o[Embedding::kSumLuminanceSquares] = squares;
     }
 }
 

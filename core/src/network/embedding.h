@@ -56,9 +56,10 @@ public:
 
     // Per-pixel sums over the samples that apply() and accumulate() can write beside the
     // embedding, without a second pass over the samples, added in sample order, of sanitised
-    // values (non-finite or negative read as 0): diffuse RGB and specular RGB.
-    static constexpr int kSampleSumChannels = 6;
-    static constexpr int kSumDiffuse = 0, kSumSpecular = 3;
+    // values (non-finite or negative read as 0): diffuse RGB, specular RGB, and the square of each
+    // sample's luminance (diffuse + specular), from which the input's noise is judged.
+    static constexpr int kSampleSumChannels = 7;
+    static constexpr int kSumDiffuse = 0, kSumSpecular = 3, kSumLuminanceSquares = 6;
 
     // samples: [pixels][spp][kFeatureCount] raw features (frame layout); scales from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).

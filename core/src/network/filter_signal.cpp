@@ -1,5 +1,6 @@
 #include "network/filter_signal.h"
 
+#include <algorithm>
 #include <string>
 
 #include "affinity/error.h"
@@ -15,6 +16,28 @@ void signalFromSums(const float* sums, long long pixels, int spp, float* signal)
         for (int c = 0; c < 3; ++c)
             out[c] = (sum[Embedding::kSumDiffuse + c] + sum[Embedding::kSumSpecular + c]) / count;
     }
+}
+
+void meanSquaresFromSums(const float* sums, long long pixels, int spp, float* meanSquares) {
+    // Larger values (radiance near kMaxRadiance, whose squares overflow) are kept at this: the box
+    // sums of the stage that reads them run in double, and an infinity would not leave them.
+    constexpr float kLargest = 1e30f;
+    const float count = float(spp);
+    for (long long p = 0; p < pixels; ++p) {
+        const float meanSquare =
+            sums[std::size_t(p) * Embedding::kSampleSumChannels + Embedding::kSumLuminanceSquares] / count;
+        meanSquares[p] = std::min(meanSquare, kLargest);  // (min of +Inf and kLargest is kLargest)
+    }
+}
+
+void makeMeanSquares(const FeatureMap& sums, int spp, FeatureMap& meanSquares) {
+    if (sums.channels() != Embedding::kSampleSumChannels || spp < 1)
+        throw Error("mean squares: needs " + std::to_string(Embedding::kSampleSumChannels) +
+                    " sums over at least one sample");
+    meanSquares.resize(sums.height(), sums.width(), 1);
+    const int width = sums.width();
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < sums.height(); ++y) meanSquaresFromSums(sums.pixel(y, 0), width, spp, meanSquares.pixel(y, 0));
 }
 
 void makeAccumulatedSignal(const FeatureMap& sums, int spp, FeatureMap& signal) {

@@ -12,6 +12,7 @@ struct Ablation {
     bool temporalKernel = true;    // false: the last kernel has no taps into the previous output
     bool allKernels = true;        // false: only the last (widest) kernel filters, K = 1
     bool lightRestoration = true;  // false: the kernels' output as it is (light_restoration.h)
+    bool inputFallback = true;     // false: no move back toward the noisy input (input_fallback.h)
 };
 
 // A Denoiser of `model` with the parts `ablation` switches off.

@@ -15,6 +15,7 @@
 #include "pipeline/ablation.h"
 #include "pipeline/feature_map_pool.h"
 #include "pipeline/frame_input.h"
+#include "pipeline/input_fallback.h"
 #include "pipeline/light_restoration.h"
 #include "pipeline/sequence_history.h"
 #include "pipeline/stages.h"
@@ -213,6 +214,12 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
         restoreLight(frame.signal, motion, valid, useHistory, history.light, radiance.data(), pool);
         clock.mark("light restoration");
     }
+    if (ablation.inputFallback) {
+        fallBackToInput(frame.signal, frame.meanSquares, frame.spp, motion, valid, useHistory, history.fallbackNoise,
+                        radiance.data(), pool);
+        clock.mark("input fallback");
+    }
+    pool.give(frame.meanSquares);
     pool.give(frame.signal);
     local.bufferBytes = pool.heldCapacity() * sizeof(float);
     if (report) *report = local;

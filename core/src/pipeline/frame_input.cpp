@@ -67,11 +67,14 @@ EmbeddedFrame embedWholeFrame(const Network& net, FeatureMapPool& pool, Sequence
     // The signal straight from each chunk's sample sums: a map of the sums would be the third
     // largest while the samples are held.
     frame.signal = pool.take(height, samples.width, kSignalChannels);
-    const int spp = samples.spp;
+    frame.meanSquares = pool.take(height, samples.width, 1);
+    const int spp = frame.spp = samples.spp;
     float* signal = frame.signal.data();
+    float* meanSquares = frame.meanSquares.data();
     frame.invalidRadiance = net.embedding->apply(
         samples, height, scales, frame.embedding, [&](long long firstPixel, int count, const float* sums) {
             signalFromSums(sums, count, spp, signal + std::size_t(firstPixel) * std::size_t(kSignalChannels));
+            meanSquaresFromSums(sums, count, spp, meanSquares + std::size_t(firstPixel));
         });
     return frame;
 }
@@ -173,6 +176,9 @@ EmbeddedFrame FrameInput::finishStreamed(const Network& net, FeatureMapPool& poo
     }
     frame.signal = pool.take(sampleSums_.height(), sampleSums_.width(), kSignalChannels);
     makeAccumulatedSignal(sampleSums_, spp_, frame.signal);
+    frame.meanSquares = pool.take(sampleSums_.height(), sampleSums_.width(), 1);
+    makeMeanSquares(sampleSums_, spp_, frame.meanSquares);
+    frame.spp = spp_;
     pool.give(sampleSums_);
     frame.invalidRadiance = invalidRadiance_;
     frame.exposure = exposure_;

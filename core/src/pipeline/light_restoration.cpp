@@ -5,87 +5,16 @@
 #include <utility>
 #include <vector>
 
-#include "kernels/bilinear_warp.h"
+#include "kernels/box_sums.h"
 #include "kernels/luminance.h"
+#include "pipeline/motion_blend.h"
 
 namespace affinity {
 namespace {
 
 constexpr int kBoxPasses = 3;
-constexpr int kColumnBlock = 64;  // columns per work item of the vertical pass
 // The local mean a pixel's noise is measured against: one box pass of this radius per axis.
 constexpr int kLocalMeanRadius = 2;
-
-// Each output pixel the mean of the inputs within `radius` along the axis that lie inside the
-// image, from running sums in double (adding and taking away values does not drift), one sum per
-// lane: a block of kRowBlock rows, or of kColumnBlock columns, moves along together, so that the
-// sums' additions do not wait on one another and every access runs along a row.
-constexpr int kRowBlock = 8;
-
-// 1 / (pixels inside the window at i), n pixels along the axis.
-double inverseCount(int i, int n, int radius) {
-    return 1.0 / double(std::min(n - 1, i + radius) - std::max(0, i - radius) + 1);
-}
-
-// `result` (the same size as `map`) gets map's rows boxed.
-void boxRows(const FeatureMap& map, int radius, FeatureMap& result) {
-    const int width = map.width(), height = map.height();
-    const int blocks = (height + kRowBlock - 1) / kRowBlock;
-#pragma omp parallel for schedule(static)
-    for (int block = 0; block < blocks; ++block) {
-        const int first = block * kRowBlock, count = std::min(height, first + kRowBlock) - first;
-        const float* in[kRowBlock];
-        float* out[kRowBlock];
-        for (int k = 0; k < kRowBlock; ++k) {
-            const int y = first + std::min(k, count - 1);  // a short last block repeats its last row
-            in[k] = map.pixel(y, 0);
-            out[k] = result.pixel(y, 0);
-        }
-        double sums[kRowBlock] = {};
-        for (int x = 0; x <= std::min(radius, width - 1); ++x)
-            for (int k = 0; k < kRowBlock; ++k) sums[k] += in[k][x];
-        for (int x = 0; x < width; ++x) {
-            const double inverse = inverseCount(x, width, radius);
-            for (int k = 0; k < kRowBlock; ++k) out[k][x] = float(sums[k] * inverse);
-            if (x + radius + 1 < width)
-                for (int k = 0; k < kRowBlock; ++k) sums[k] += in[k][x + radius + 1];
-            if (x - radius >= 0)
-                for (int k = 0; k < kRowBlock; ++k) sums[k] -= in[k][x - radius];
-        }
-    }
-}
-
-// The same along the columns.
-void boxColumns(const FeatureMap& map, int radius, FeatureMap& result) {
-    const int width = map.width(), height = map.height();
-    const int blocks = (width + kColumnBlock - 1) / kColumnBlock;
-#pragma omp parallel
-    {
-        std::vector<double> sums(static_cast<std::size_t>(kColumnBlock));
-#pragma omp for schedule(static)
-        for (int block = 0; block < blocks; ++block) {
-            const int first = block * kColumnBlock, count = std::min(width, first + kColumnBlock) - first;
-            std::fill(sums.begin(), sums.end(), 0.0);
-            for (int y = 0; y <= std::min(radius, height - 1); ++y) {
-                const float* row = map.pixel(y, first);
-                for (int i = 0; i < count; ++i) sums[std::size_t(i)] += row[i];
-            }
-            for (int y = 0; y < height; ++y) {
-                const double inverse = inverseCount(y, height, radius);
-                float* out = result.pixel(y, first);
-                for (int i = 0; i < count; ++i) out[i] = float(sums[std::size_t(i)] * inverse);
-                if (y + radius + 1 < height) {
-                    const float* entering = map.pixel(y + radius + 1, first);
-                    for (int i = 0; i < count; ++i) sums[std::size_t(i)] += entering[i];
-                }
-                if (y - radius >= 0) {
-                    const float* leaving = map.pixel(y - radius, first);
-                    for (int i = 0; i < count; ++i) sums[std::size_t(i)] -= leaving[i];
-                }
-            }
-        }
-    }
-}
 
 // A one-channel map of the luminance of a 3-channel one.
 FeatureMap luminanceMap(const float* rgb, int height, int width, FeatureMapPool& pool) {
@@ -124,22 +53,6 @@ FeatureMap blurredVariance(const FeatureMap& Y, FeatureMapPool& pool) {
     return local;
 }
 
-// accumulated = w * warped previous + (1 - w) * current where valid, current elsewhere; with
-// `squared` the weights squared: the variance of that sum of independent estimates.
-void accumulate(const FeatureMap& previous, const float* motion, const float* valid, FeatureMap& current,
-                FeatureMapPool& pool, bool squared = false) {
-    FeatureMap warped = pool.take(current.height(), current.width(), 1);
-    warpBilinear(previous, motion, warped);
-    const float w = kLightHistoryWeight, rest = 1.0f - kLightHistoryWeight;
-    const float old = squared ? w * w : w, fresh = squared ? rest * rest : rest;
-    const std::size_t pixels = std::size_t(current.height()) * std::size_t(current.width());
-#pragma omp parallel for schedule(static)
-    for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) {
-        if (valid[p] > 0.5f) current.data()[p] = old * warped.data()[p] + fresh * current.data()[p];
-    }
-    pool.give(warped);
-}
-
 }  // namespace
 
 void blurForLight(FeatureMap& map, FeatureMapPool& pool) {
@@ -161,9 +74,9 @@ void restoreLight(const FeatureMap& noisy, const float* motion, const float* val
     blurForLight(output, pool);
     const bool continues = useHistory && history.input.height() == height && history.input.width() == width;
     if (continues) {
-        accumulate(history.input, motion, valid, input, pool);
-        accumulate(history.output, motion, valid, output, pool);
-        accumulate(history.inputVariance, motion, valid, variance, pool, true);
+        blendAlongMotion(history.input, motion, valid, kLightHistoryWeight, input, pool);
+        blendAlongMotion(history.output, motion, valid, kLightHistoryWeight, output, pool);
+        blendAlongMotion(history.inputVariance, motion, valid, kLightHistoryWeight, variance, pool, true);
     }
     const std::size_t pixels = std::size_t(height) * std::size_t(width);
     double meanInput = 0.0;

@@ -18,8 +18,10 @@ public:
     // filter_signal.h) and the last kernel's output (the denoised radiance) and features. The
     // stages read them and put the frame's own in their place.
     FeatureMap embedding, signal, output, lastFeatures;
-    // The light restoration's accumulations (light_restoration.h).
+    // The light restoration's accumulations (light_restoration.h) and the input fallback's
+    // accumulated noise (input_fallback.h).
     LightHistory light;
+    FeatureMap fallbackNoise;
 
     bool has() const { return has_; }
     // Forgets the sequence (reset(), a failed or interrupted frame): the next frame starts a new one.
