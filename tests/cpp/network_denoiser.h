@@ -1,6 +1,6 @@
 #pragma once
 // The trained network alone, without the light restoration and the input fallback the Denoiser
-// runs after it (docs/MODEL.md sections 10-11): what the training framework computes, for the
+// runs after it (docs/MODEL.md section 10): what the training framework computes, for the
 // parity tests.
 #include <string>
 

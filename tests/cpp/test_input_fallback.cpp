@@ -1,5 +1,5 @@
 // The input fallback after the kernels (core/src/pipeline/input_fallback.h, docs/MODEL.md
-// section 11): outputs of known departure from inputs of known noise, with and without history.
+// section 10): outputs of known departure from inputs of known noise, with and without history.
 #include <gtest/gtest.h>
 
 #include <random>

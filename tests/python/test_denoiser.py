@@ -380,3 +380,40 @@ def test_light_restoration_gives_back_the_light_of_sparse_fireflies() -> None:
     kernels_only = float(affinity_core.Denoiser(model, ablation="no_light_restoration").denoise(frame).mean())
     assert abs(restored / noisy - 1.0) < 0.01
     assert kernels_only / noisy < 0.95
+
+
+def test_input_fallback_keeps_a_shadow_on_a_wall_of_sparse_fireflies_dark() -> None:
+    # A wall lit only by sparse fireflies of indirect light (1 % of the samples carry 2.0, 4 per
+    # pixel) with a 12-pixel shadow whose samples are all black, the same features everywhere:
+    # the kernels spread the wall's light into the shadow; the input fallback sees a departure
+    # from an input that is black in every sample of the window, no noise to explain it, and
+    # gives the shadow back (docs/MODEL.md section 10, "Input fallback").
+    height, width, spp, shadow = 96, 128, 4, slice(58, 70)
+
+    def frame(t: int) -> dict:
+        rng = np.random.default_rng(100 + t)
+        radiance = (rng.random((height, width, spp)) < 0.01) * 2.0
+        radiance[:, shadow] = 0.0
+        samples = np.zeros((height, width, spp, 18), np.float32)
+        samples[..., 0:3] = radiance[..., None]
+        samples[..., 6:9] = (0.0, 0.0, 1.0)  # normal
+        samples[..., 9] = 3.0  # depth
+        samples[..., 10:13] = 0.5  # albedo
+        samples[..., 13] = 1.0  # roughness
+        info = {"scene_name": "a shadow on a wall", "frame_index": t, "reference_spp": 0, "seed": 0,
+                "world_to_camera": np.eye(4, dtype=np.float32), "camera_to_clip": np.eye(4, dtype=np.float32)}
+        return {"samples": samples, "motion": np.zeros((height, width, 2), np.float32),
+                "valid": np.ones((height, width), np.float32), "info": info}
+
+    model = affinity_core.Model.from_file(CYCLES_MODEL)
+    light = {}
+    for ablation in (None, "no_input_fallback"):
+        denoiser = affinity_core.Denoiser(model, ablation=ablation)
+        for t in range(6):
+            output = denoiser.denoise(frame(t)).mean(axis=-1)
+        inside = output[:, shadow.start + 2:shadow.stop - 2].mean()
+        wall = np.concatenate([output[:, 10:shadow.start - 10], output[:, shadow.stop + 10:width - 10]], axis=1).mean()
+        light[ablation] = (inside / wall, wall)
+    assert light["no_input_fallback"][0] > 0.2  # the kernels alone fill the shadow
+    assert light[None][0] < 0.12
+    assert light[None][1] == pytest.approx(light["no_input_fallback"][1], rel=0.03)  # the wall keeps its light

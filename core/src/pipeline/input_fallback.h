@@ -1,5 +1,5 @@
 #pragma once
-// Input fallback (docs/MODEL.md section 11). The kernels' output is a weighted average of a
+// Input fallback (docs/MODEL.md section 10, "Input fallback"). The kernels' output is a weighted average of a
 // pixel's neighbours, biased wherever they are not alike in truth: a shadow whose few samples
 // hold none of the rare bright ones of the light around it gets that light, detail a frame of
 // many samples shows is smoothed. The noisy input is unbiased, and its samples tell its noise.
