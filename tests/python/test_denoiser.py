@@ -355,6 +355,22 @@ def test_the_module_reports_its_version() -> None:
     assert affinity_core.__version__ == match.group("value")
 
 
+def grey_wall(radiance: np.ndarray, name: str, frame_index: int = 0, valid: float = 0.0) -> dict:
+    """A frame of a still, flat diffuse wall facing the camera whose samples carry `radiance`
+    (height x width x spp, grey): the same features in every sample."""
+    height, width, spp = radiance.shape
+    samples = np.zeros((height, width, spp, 18), np.float32)
+    samples[..., 0:3] = radiance[..., None]
+    samples[..., 6:9] = (0.0, 0.0, 1.0)  # normal
+    samples[..., 9] = 3.0  # depth
+    samples[..., 10:13] = 0.5  # albedo
+    samples[..., 13] = 1.0  # roughness
+    info = {"scene_name": name, "frame_index": frame_index, "reference_spp": 0, "seed": 0,
+            "world_to_camera": np.eye(4, dtype=np.float32), "camera_to_clip": np.eye(4, dtype=np.float32)}
+    return {"samples": samples, "motion": np.zeros((height, width, 2), np.float32),
+            "valid": np.full((height, width), valid, np.float32), "info": info}
+
+
 def test_light_restoration_gives_back_the_light_of_sparse_fireflies() -> None:
     # A dim, evenly lit diffuse wall (0.1) whose light is half in sparse fireflies (1 % of the
     # samples carry 5): the Cycles model's kernels leave most fireflies out (17 % of the light
@@ -363,16 +379,7 @@ def test_light_restoration_gives_back_the_light_of_sparse_fireflies() -> None:
     rng = np.random.default_rng(1)
     height, width, spp = 160, 200, 2
     radiance = 0.1 + (rng.random((height, width, spp)) < 0.01) * 5.0
-    samples = np.zeros((height, width, spp, 18), np.float32)
-    samples[..., 0:3] = radiance[..., None]
-    samples[..., 6:9] = (0.0, 0.0, 1.0)  # normal
-    samples[..., 9] = 3.0  # depth
-    samples[..., 10:13] = 0.5  # albedo
-    samples[..., 13] = 1.0  # roughness
-    info = {"scene_name": "fireflies on a wall", "frame_index": 0, "reference_spp": 0, "seed": 0,
-            "world_to_camera": np.eye(4, dtype=np.float32), "camera_to_clip": np.eye(4, dtype=np.float32)}
-    frame = {"samples": samples, "motion": np.zeros((height, width, 2), np.float32),
-             "valid": np.zeros((height, width), np.float32), "info": info}
+    frame = grey_wall(radiance, "fireflies on a wall")
     noisy = float(radiance.mean())
     model = affinity_core.Model.from_file(CYCLES_MODEL)
     assert model.light_restoration and not affinity_core.Model.built_in().light_restoration
@@ -394,16 +401,7 @@ def test_input_fallback_keeps_a_shadow_on_a_wall_of_sparse_fireflies_dark() -> N
         rng = np.random.default_rng(100 + t)
         radiance = (rng.random((height, width, spp)) < 0.01) * 2.0
         radiance[:, shadow] = 0.0
-        samples = np.zeros((height, width, spp, 18), np.float32)
-        samples[..., 0:3] = radiance[..., None]
-        samples[..., 6:9] = (0.0, 0.0, 1.0)  # normal
-        samples[..., 9] = 3.0  # depth
-        samples[..., 10:13] = 0.5  # albedo
-        samples[..., 13] = 1.0  # roughness
-        info = {"scene_name": "a shadow on a wall", "frame_index": t, "reference_spp": 0, "seed": 0,
-                "world_to_camera": np.eye(4, dtype=np.float32), "camera_to_clip": np.eye(4, dtype=np.float32)}
-        return {"samples": samples, "motion": np.zeros((height, width, 2), np.float32),
-                "valid": np.ones((height, width), np.float32), "info": info}
+        return grey_wall(radiance, "a shadow on a wall", frame_index=t, valid=1.0)
 
     model = affinity_core.Model.from_file(CYCLES_MODEL)
     light = {}

@@ -16,8 +16,8 @@ void makeAccumulatedSignal(const FeatureMap& sums, int spp, FeatureMap& signal);
 // at a time that need not be kept (Embedding::apply with a SumsSink).
 void signalFromSums(const float* sums, long long pixels, int spp, float* signal);
 
-// For the noise of that signal (docs/MODEL.md section 10, "Input fallback"): per pixel, the mean over its `spp`
-// samples of their squared luminance. noise: height x width x 1.
+// For the noise of that signal (docs/MODEL.md section 10, "Input fallback"): per pixel, the
+// mean over its `spp` samples of their squared luminance. meanSquares: height x width x 1.
 void makeMeanSquares(const FeatureMap& sums, int spp, FeatureMap& meanSquares);
 // The same for `pixels` consecutive pixels' sums, on the calling thread.
 void meanSquaresFromSums(const float* sums, long long pixels, int spp, float* meanSquares);

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstddef>
 #include <utility>
-#include <vector>
 
 #include "kernels/box_sums.h"
 #include "kernels/luminance.h"
