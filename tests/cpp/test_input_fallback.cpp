@@ -44,6 +44,16 @@ float fallenBack(float input, float variance, float output) {
     return second[(15 * kWidth + 20) * 3 + 1];
 }
 
+TEST(InputFallback, TheWindowHoldsAbout196SamplesAtAnySampleCount) {
+    // Side sqrt(196 / spp) rounded to an odd number of pixels, at least 3.
+    EXPECT_EQ(fallbackRadius(1), 7);   // (14 - 1) / 2 = 6.5 rounds up: 15 x 15 = 225 samples
+    EXPECT_EQ(fallbackRadius(2), 4);   // 9 x 9 x 2 = 162
+    EXPECT_EQ(fallbackRadius(4), 3);   // 7 x 7 x 4 = 196
+    EXPECT_EQ(fallbackRadius(8), 2);   // 5 x 5 x 8 = 200
+    EXPECT_EQ(fallbackRadius(16), 1);  // 3 x 3 x 16 = 144
+    EXPECT_EQ(fallbackRadius(64), 1);
+}
+
 TEST(InputFallback, KeepsAnOutputWhoseDepartureTheNoiseExplainsBitForBit) {
     // 4 samples per pixel of the truth 1 plus noise of deviation 0.4: pixel means of variance 0.04.
     std::mt19937 rng(5);

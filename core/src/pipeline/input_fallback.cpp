@@ -1,6 +1,7 @@
 #include "pipeline/input_fallback.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 #include <utility>
 
@@ -12,10 +13,10 @@ namespace affinity {
 namespace {
 
 // `map` boxed over the window, in place.
-void boxWindow(FeatureMap& map, FeatureMapPool& pool) {
+void boxWindow(FeatureMap& map, int radius, FeatureMapPool& pool) {
     FeatureMap rows = pool.take(map.height(), map.width(), 1);
-    boxRows(map, kFallbackRadius, rows);
-    boxColumns(rows, kFallbackRadius, map);
+    boxRows(map, radius, rows);
+    boxColumns(rows, radius, map);
     pool.give(rows);
 }
 
@@ -38,6 +39,11 @@ void moveTowardInput(const FeatureMap& noisy, const FeatureMap& departure, const
 
 }  // namespace
 
+int fallbackRadius(int spp) {
+    const double side = std::sqrt(double(kFallbackWindowSamples) / double(std::max(spp, 1)));
+    return std::max(1, int(std::lround((side - 1.0) / 2.0)));
+}
+
 void fallBackToInput(const FeatureMap& noisy, const FeatureMap& meanSquares, int spp, const float* motion,
                      const float* valid, bool useHistory, FeatureMap& noiseHistory, float* radiance,
                      FeatureMapPool& pool) {
@@ -53,8 +59,9 @@ void fallBackToInput(const FeatureMap& noisy, const FeatureMap& meanSquares, int
         mean.data()[p] = input;
         variance.data()[p] = meanSquares.data()[p];
     }
-    boxWindow(mean, pool);
-    boxWindow(variance, pool);  // the window's mean square, then its variance of a pixel's mean:
+    const int radius = fallbackRadius(spp);
+    boxWindow(mean, radius, pool);
+    boxWindow(variance, radius, pool);  // the window's mean square, then its variance of a pixel's mean:
     const float perPixel = 1.0f / float(std::max(spp, 1));
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) {
@@ -65,7 +72,7 @@ void fallBackToInput(const FeatureMap& noisy, const FeatureMap& meanSquares, int
     // A frame without history only measures its noise: in one frame a window's few samples of
     // heavy-tailed light often hold none of its rare bright ones, and read as noiseless.
     if (useHistory && noiseHistory.height() == height && noiseHistory.width() == width) {
-        boxWindow(departure, pool);
+        boxWindow(departure, radius, pool);
         blendAlongMotion(noiseHistory, motion, valid, kFallbackHistoryWeight, variance, pool);
         moveTowardInput(noisy, departure, variance, radiance);
     }

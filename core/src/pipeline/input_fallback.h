@@ -18,8 +18,12 @@
 
 namespace affinity {
 
-// The window: one box pass of this radius per axis (7 x 7 pixels).
-inline constexpr int kFallbackRadius = 3;
+// The window: a square holding about this many samples (7 x 7 pixels at 4 samples per pixel,
+// 9 x 9 at 2, 5 x 5 at 8), one box pass per axis: its noise is measured from as many samples
+// whatever the samples per pixel.
+inline constexpr int kFallbackWindowSamples = 196;
+// The box radius of that window at `spp` samples per pixel (at least 1).
+int fallbackRadius(int spp);
 // How many times the input's noise a departure must exceed before any of it counts as bias: the
 // variance of heavy-tailed light estimated from a few samples is most often far below its truth.
 inline constexpr float kFallbackNoiseFactor = 8.0f;
