@@ -18,8 +18,7 @@ double inverseCount(int i, int n, int radius) {
     return 1.0 / double(std::min(n - 1, i + radius) - std::max(0, i - radius) + 1);
 }
 
-}  // namespace
-
+// `result` (the same size as `map`, not `map` itself) gets map's rows boxed.
 void boxRows(const FeatureMap& map, int radius, FeatureMap& result) {
     const int width = map.width(), height = map.height();
     const int blocks = (height + kRowBlock - 1) / kRowBlock;
@@ -47,6 +46,7 @@ void boxRows(const FeatureMap& map, int radius, FeatureMap& result) {
     }
 }
 
+// The same along the columns.
 void boxColumns(const FeatureMap& map, int radius, FeatureMap& result) {
     const int width = map.width(), height = map.height();
     const int blocks = (width + kColumnBlock - 1) / kColumnBlock;
@@ -76,6 +76,13 @@ void boxColumns(const FeatureMap& map, int radius, FeatureMap& result) {
             }
         }
     }
+}
+
+}  // namespace
+
+void boxRowsAndColumns(const FeatureMap& map, int radius, FeatureMap& scratch, FeatureMap& result) {
+    boxRows(map, radius, scratch);
+    boxColumns(scratch, radius, result);
 }
 
 }  // namespace affinity

@@ -6,9 +6,9 @@
 
 namespace affinity {
 
-// `result` (the same size as `map`, not `map` itself) gets map's rows boxed.
-void boxRows(const FeatureMap& map, int radius, FeatureMap& result);
-// The same along the columns.
-void boxColumns(const FeatureMap& map, int radius, FeatureMap& result);
+// `result` (the same size as `map`; it may be `map` itself) gets map boxed along its rows, then
+// along its columns: a (2 radius + 1)^2 box. `scratch` (the same size, neither of the others)
+// holds the rows' pass.
+void boxRowsAndColumns(const FeatureMap& map, int radius, FeatureMap& scratch, FeatureMap& result);
 
 }  // namespace affinity

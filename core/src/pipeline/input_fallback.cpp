@@ -15,8 +15,7 @@ namespace {
 // `map` boxed over the window, in place.
 void boxWindow(FeatureMap& map, int radius, FeatureMapPool& pool) {
     FeatureMap rows = pool.take(map.height(), map.width(), 1);
-    boxRows(map, radius, rows);
-    boxColumns(rows, radius, map);
+    boxRowsAndColumns(map, radius, rows, map);
     pool.give(rows);
 }
 

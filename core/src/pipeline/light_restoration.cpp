@@ -31,8 +31,7 @@ FeatureMap luminanceMap(const float* rgb, int height, int width, FeatureMapPool&
 FeatureMap blurredVariance(const FeatureMap& Y, FeatureMapPool& pool) {
     const int height = Y.height(), width = Y.width();
     FeatureMap rows = pool.take(height, width, 1), local = pool.take(height, width, 1);
-    boxRows(Y, kLocalMeanRadius, rows);
-    boxColumns(rows, kLocalMeanRadius, local);
+    boxRowsAndColumns(Y, kLocalMeanRadius, rows, local);
     pool.give(rows);
     const std::size_t pixels = std::size_t(height) * std::size_t(width);
 #pragma omp parallel for schedule(static)
@@ -56,10 +55,7 @@ FeatureMap blurredVariance(const FeatureMap& Y, FeatureMapPool& pool) {
 
 void blurForLight(FeatureMap& map, FeatureMapPool& pool) {
     FeatureMap scratch = pool.take(map.height(), map.width(), 1);
-    for (int pass = 0; pass < kBoxPasses; ++pass) {
-        boxRows(map, kLightBoxRadius, scratch);
-        boxColumns(scratch, kLightBoxRadius, map);
-    }
+    for (int pass = 0; pass < kBoxPasses; ++pass) boxRowsAndColumns(map, kLightBoxRadius, scratch, map);
     pool.give(scratch);
 }
 
