@@ -160,12 +160,14 @@ class Denoiser:
     "single_frame" (no history: every frame denoised on its own), "no_temporal_kernel" (the
     last kernel has no taps into the previous output), "one_kernel" (only the last, widest
     kernel filters), "no_light_restoration" (the kernels' output without the coarse light
-    restoration after them) or "no_input_fallback" (without the move back toward the noisy input
-    where the output departs from it by more than its noise explains). None runs the whole
-    pipeline.
+    restoration after them), "no_input_fallback" (without the move back toward the noisy input
+    where the output departs from it by more than its noise explains) or "no_peak_guard" (without
+    the cap on lone output pixels far above their neighbours and the input around them). None
+    runs the whole pipeline.
     """
 
-    ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel", "no_light_restoration", "no_input_fallback")
+    ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel", "no_light_restoration", "no_input_fallback",
+                 "no_peak_guard")
 
     def __init__(
         self,
@@ -188,6 +190,7 @@ class Denoiser:
             all_kernels=ablation != "one_kernel",
             light_restoration=ablation != "no_light_restoration",
             input_fallback=ablation != "no_input_fallback",
+            peak_guard=ablation != "no_peak_guard",
         )
         #: What the last call did: invalid_radiance (NaN/Inf/negative values read as 0),
         #: used_history, reset_reason, exposure (the factor on the radiance the network saw, set by

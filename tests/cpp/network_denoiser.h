@@ -1,6 +1,6 @@
 #pragma once
-// The trained network alone, without the light restoration and the input fallback the Denoiser
-// runs after it (docs/MODEL.md section 10): what the training framework computes, for the
+// The trained network alone, without the light restoration, the input fallback and the peak guard
+// the Denoiser runs after it (docs/MODEL.md section 10): what the training framework computes, for the
 // parity tests.
 #include <string>
 
@@ -11,7 +11,7 @@ namespace affinity::test {
 
 inline Denoiser networkDenoiser(const std::string& weightsPath) {
     return ablatedDenoiser(Model::fromFile(weightsPath, Precision::Float32),
-                           {.lightRestoration = false, .inputFallback = false});
+                           {.lightRestoration = false, .inputFallback = false, .peakGuard = false});
 }
 
 }  // namespace affinity::test

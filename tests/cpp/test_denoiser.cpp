@@ -247,10 +247,11 @@ TEST(Denoiser, ReportsTheTimeOfEveryStage) {
         stages.push_back(stage);
         EXPECT_GE(ms, 0.0) << stage;
     }
-    ASSERT_EQ(stages.size(), 7u);
+    ASSERT_EQ(stages.size(), 8u);
     EXPECT_EQ(stages.front(), "embedding");
     EXPECT_EQ(stages[5], "temporal kernel");
-    EXPECT_EQ(stages.back(), "input fallback");
+    EXPECT_EQ(stages[6], "input fallback");
+    EXPECT_EQ(stages.back(), "peak guard");
 }
 
 TEST(Denoiser, OddSizesWork) {
@@ -819,9 +820,9 @@ TEST(Denoiser, TheWeightsFileSwitchesTheLightRestoration) {
     EXPECT_TRUE(on.lightRestoration());
     EXPECT_FALSE(Model::builtIn().lightRestoration());
     EXPECT_THROW(modelWith(2), Error);
-    const Ablation noFallback{.inputFallback = false};
+    const Ablation noFallback{.inputFallback = false, .peakGuard = false};
     Denoiser plain = ablatedDenoiser(absent, noFallback), restoring = ablatedDenoiser(on, noFallback);
-    Denoiser kernelsOnly = ablatedDenoiser(on, {.lightRestoration = false, .inputFallback = false});
+    Denoiser kernelsOnly = ablatedDenoiser(on, {.lightRestoration = false, .inputFallback = false, .peakGuard = false});
     for (const auto& frame : frames) {
         const std::vector<float> kernels = kernelsOnly.denoise(frame);
         EXPECT_EQ(plain.denoise(frame), kernels);

@@ -16,6 +16,7 @@
 #include "pipeline/feature_map_pool.h"
 #include "pipeline/frame_input.h"
 #include "pipeline/input_fallback.h"
+#include "pipeline/peak_guard.h"
 #include "pipeline/light_restoration.h"
 #include "pipeline/sequence_history.h"
 #include "pipeline/stages.h"
@@ -218,6 +219,10 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
         fallBackToInput(frame.signal, frame.meanSquares, frame.spp, motion, valid, useHistory, history.fallbackNoise,
                         radiance.data(), pool);
         clock.mark("input fallback");
+    }
+    if (ablation.peakGuard) {
+        guardPeaks(frame.signal, radiance.data(), pool);
+        clock.mark("peak guard");
     }
     pool.give(frame.meanSquares);
     pool.give(frame.signal);

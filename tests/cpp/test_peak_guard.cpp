@@ -1,0 +1,88 @@
+// The peak guard after the input fallback (core/src/pipeline/peak_guard.h, docs/MODEL.md section
+// 10): which lone bright output pixels it caps, to what, and which it leaves bit for bit.
+#include <gtest/gtest.h>
+
+#include <cstddef>
+#include <vector>
+
+#include "kernels/feature_map.h"
+#include "kernels/luminance.h"
+#include "pipeline/peak_guard.h"
+
+namespace affinity {
+namespace {
+
+constexpr int kHeight = 12, kWidth = 16;
+
+FeatureMap grey(float value) {
+    FeatureMap map(kHeight, kWidth, 3);
+    for (std::size_t i = 0; i < std::size_t(kHeight) * kWidth * 3; ++i) map.data()[i] = value;
+    return map;
+}
+
+std::vector<float> greyOutput(float value) { return std::vector<float>(std::size_t(kHeight) * kWidth * 3, value); }
+
+float* pixel(std::vector<float>& image, int y, int x) { return image.data() + (std::size_t(y) * kWidth + x) * 3; }
+
+void setPixel(float* rgb, float r, float g, float b) { rgb[0] = r, rgb[1] = g, rgb[2] = b; }
+
+TEST(PeakGuard, CapsALonePeakTheInputDoesNotShowKeepingItsHue) {
+    // A firefly of an earlier frame carried forward: 3 on a wall of 0.1 whose input is 0.1 here.
+    std::vector<float> output = greyOutput(0.1f);
+    setPixel(pixel(output, 5, 7), 3.0f, 1.5f, 0.5f);
+    const float before = luminance(pixel(output, 5, 7));
+    FeatureMapPool pool;
+    EXPECT_EQ(guardPeaks(grey(0.1f), output.data(), pool), 1);
+    // The cap: the larger of 4 x the input's 0.1 and 1.5 x the neighbours' 0.1.
+    const float* capped = pixel(output, 5, 7);
+    EXPECT_NEAR(luminance(capped), 0.4f, 1e-6f);
+    EXPECT_NEAR(capped[0] / capped[1], 2.0f, 1e-5f);
+    EXPECT_NEAR(capped[1] / capped[2], 3.0f, 1e-5f);
+    EXPECT_GT(before, 1.7f);  // 0.2126 x 3 + 0.7152 x 1.5 + 0.0722 x 0.5 = 1.75 before
+    std::vector<float> rest = output;
+    setPixel(pixel(rest, 5, 7), 0.1f, 0.1f, 0.1f);
+    EXPECT_EQ(rest, greyOutput(0.1f)) << "every other pixel as it was";
+}
+
+TEST(PeakGuard, KeepsAGlintThisFramesInputShows) {
+    std::vector<float> output = greyOutput(0.1f);
+    setPixel(pixel(output, 5, 7), 3.0f, 3.0f, 3.0f);
+    FeatureMap input = grey(0.1f);
+    for (int c = 0; c < 3; ++c) input.pixel(5, 8)[c] = 0.8f;  // a neighbour's input: cap 3.2
+    const std::vector<float> before = output;
+    FeatureMapPool pool;
+    EXPECT_EQ(guardPeaks(input, output.data(), pool), 0);
+    EXPECT_EQ(output, before);
+}
+
+TEST(PeakGuard, KeepsLightThatIsNotALonePixel) {
+    // Two bright pixels side by side (a small highlight, or a firefly's light the kernels spread)
+    // on an input that shows none of it: each has a neighbour as bright, so neither is capped.
+    std::vector<float> output = greyOutput(0.1f);
+    setPixel(pixel(output, 5, 7), 3.0f, 3.0f, 3.0f);
+    setPixel(pixel(output, 5, 8), 2.5f, 2.5f, 2.5f);
+    const std::vector<float> before = output;
+    FeatureMapPool pool;
+    EXPECT_EQ(guardPeaks(grey(0.1f), output.data(), pool), 0);
+    EXPECT_EQ(output, before);
+    // 1.5 x a neighbour is the limit: a third pixel far above both is capped at 4.5.
+    setPixel(pixel(output, 5, 9), 6.0f, 6.0f, 6.0f);
+    EXPECT_EQ(guardPeaks(grey(0.1f), output.data(), pool), 1);
+    EXPECT_NEAR(luminance(pixel(output, 5, 9)), 1.5f * 2.5f, 1e-5f);
+}
+
+TEST(PeakGuard, CornersUseTheNeighboursInsideTheImageAndBlackStaysBlack) {
+    std::vector<float> output = greyOutput(0.0f);
+    FeatureMapPool pool;
+    EXPECT_EQ(guardPeaks(grey(0.0f), output.data(), pool), 0);
+    EXPECT_EQ(output, greyOutput(0.0f));
+    setPixel(pixel(output, 0, 0), 1.0f, 1.0f, 1.0f);
+    setPixel(pixel(output, 0, 1), 0.2f, 0.2f, 0.2f);
+    setPixel(pixel(output, kHeight - 1, kWidth - 1), 1.0f, 1.0f, 1.0f);
+    EXPECT_EQ(guardPeaks(grey(0.0f), output.data(), pool), 2);
+    EXPECT_NEAR(luminance(pixel(output, 0, 0)), 0.3f, 1e-6f);            // 1.5 x its neighbour's 0.2
+    EXPECT_EQ(luminance(pixel(output, kHeight - 1, kWidth - 1)), 0.0f);  // nothing around it
+}
+
+}  // namespace
+}  // namespace affinity
