@@ -33,7 +33,7 @@ TEST(PeakGuard, CapsALonePeakTheInputDoesNotShowKeepingItsHue) {
     const float before = luminance(pixel(output, 5, 7));
     FeatureMapPool pool;
     EXPECT_EQ(guardPeaks(grey(0.1f), output.data(), pool), 1);
-    // The cap: the larger of 4 x the input's 0.1 and 1.5 x the neighbours' 0.1.
+    // The cap: the larger of 4 x the input's 0.1 and 1.5 x the ring's 0.1.
     const float* capped = pixel(output, 5, 7);
     EXPECT_NEAR(luminance(capped), 0.4f, 1e-6f);
     EXPECT_NEAR(capped[0] / capped[1], 2.0f, 1e-5f);
@@ -55,20 +55,36 @@ TEST(PeakGuard, KeepsAGlintThisFramesInputShows) {
     EXPECT_EQ(output, before);
 }
 
-TEST(PeakGuard, KeepsLightThatIsNotALonePixel) {
-    // Two bright pixels side by side (a small highlight, or a firefly's light the kernels spread)
-    // on an input that shows none of it: each has a neighbour as bright, so neither is capped.
+// Sets the pixels of rows [y0, y0 + size) and columns [x0, x0 + size) to grey `value`.
+void setBlock(std::vector<float>& image, int y0, int x0, int size, float value) {
+    for (int y = y0; y < y0 + size; ++y)
+        for (int x = x0; x < x0 + size; ++x) setPixel(pixel(image, y, x), value, value, value);
+}
+
+TEST(PeakGuard, CapsASpotOfTwoByTwoPixelsTheInputDoesNotShow) {
+    // Light carried along the motion into a few pixels: judged by the ring 2 pixels away.
     std::vector<float> output = greyOutput(0.1f);
-    setPixel(pixel(output, 5, 7), 3.0f, 3.0f, 3.0f);
-    setPixel(pixel(output, 5, 8), 2.5f, 2.5f, 2.5f);
+    setBlock(output, 5, 7, 2, 3.0f);
+    FeatureMapPool pool;
+    EXPECT_EQ(guardPeaks(grey(0.1f), output.data(), pool), 4);
+    std::vector<float> expected = greyOutput(0.1f);
+    setBlock(expected, 5, 7, 2, 0.4f);  // 4 x the input's 0.1
+    for (std::size_t i = 0; i < expected.size(); ++i) EXPECT_NEAR(output[i], expected[i], 1e-6f) << i;
+}
+
+TEST(PeakGuard, KeepsLightWiderThanTheRing) {
+    // A 4 x 4 highlight (or a firefly's light the kernels spread) on an input that shows none of
+    // it: every pixel of it has a pixel of it 2 away, so none is capped.
+    std::vector<float> output = greyOutput(0.1f);
+    setBlock(output, 4, 6, 4, 2.5f);
     const std::vector<float> before = output;
     FeatureMapPool pool;
     EXPECT_EQ(guardPeaks(grey(0.1f), output.data(), pool), 0);
     EXPECT_EQ(output, before);
-    // 1.5 x a neighbour is the limit: a third pixel far above both is capped at 4.5.
-    setPixel(pixel(output, 5, 9), 6.0f, 6.0f, 6.0f);
+    // 1.5 x the ring is the limit: a pixel inside it far above the rest is capped at 3.75.
+    setPixel(pixel(output, 5, 7), 6.0f, 6.0f, 6.0f);
     EXPECT_EQ(guardPeaks(grey(0.1f), output.data(), pool), 1);
-    EXPECT_NEAR(luminance(pixel(output, 5, 9)), 1.5f * 2.5f, 1e-5f);
+    EXPECT_NEAR(luminance(pixel(output, 5, 7)), 1.5f * 2.5f, 1e-5f);
 }
 
 TEST(PeakGuard, CornersUseTheNeighboursInsideTheImageAndBlackStaysBlack) {
@@ -77,10 +93,10 @@ TEST(PeakGuard, CornersUseTheNeighboursInsideTheImageAndBlackStaysBlack) {
     EXPECT_EQ(guardPeaks(grey(0.0f), output.data(), pool), 0);
     EXPECT_EQ(output, greyOutput(0.0f));
     setPixel(pixel(output, 0, 0), 1.0f, 1.0f, 1.0f);
-    setPixel(pixel(output, 0, 1), 0.2f, 0.2f, 0.2f);
+    setPixel(pixel(output, 0, 2), 0.2f, 0.2f, 0.2f);  // on its ring (inside the image)
     setPixel(pixel(output, kHeight - 1, kWidth - 1), 1.0f, 1.0f, 1.0f);
     EXPECT_EQ(guardPeaks(grey(0.0f), output.data(), pool), 2);
-    EXPECT_NEAR(luminance(pixel(output, 0, 0)), 0.3f, 1e-6f);            // 1.5 x its neighbour's 0.2
+    EXPECT_NEAR(luminance(pixel(output, 0, 0)), 0.3f, 1e-6f);            // 1.5 x the ring's 0.2
     EXPECT_EQ(luminance(pixel(output, kHeight - 1, kWidth - 1)), 0.0f);  // nothing around it
 }
 

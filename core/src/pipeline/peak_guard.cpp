@@ -34,19 +34,21 @@ long guardPeaks(const FeatureMap& noisy, float* radiance, FeatureMapPool& pool) 
     for (int y = 0; y < height; ++y) {
         for (int x = 0; x < width; ++x) {
             const std::size_t p = std::size_t(y) * width + x;
-            const float own = output.data()[p];
-            float inputMax = 0.0f, neighbourMax = 0.0f;
-            for (int dy = -1; dy <= 1; ++dy) {
+            float inputMax = 0.0f, ringMax = 0.0f;
+            for (int dy = -1; dy <= 1; ++dy)
+                if (y + dy >= 0 && y + dy < height) inputMax = std::max(inputMax, rowMax.data()[p + dy * width]);
+            for (int dy = -kPeakRing; dy <= kPeakRing; ++dy) {
                 const int yy = y + dy;
                 if (yy < 0 || yy >= height) continue;
-                inputMax = std::max(inputMax, rowMax.data()[std::size_t(yy) * width + x]);
-                for (int dx = -1; dx <= 1; ++dx) {
+                // The whole row at the ring's top and bottom, its two ends in between.
+                const int step = (dy == -kPeakRing || dy == kPeakRing) ? 1 : 2 * kPeakRing;
+                for (int dx = -kPeakRing; dx <= kPeakRing; dx += step) {
                     const int xx = x + dx;
-                    if (xx < 0 || xx >= width || (dx == 0 && dy == 0)) continue;
-                    neighbourMax = std::max(neighbourMax, output.data()[std::size_t(yy) * width + xx]);
+                    if (xx >= 0 && xx < width) ringMax = std::max(ringMax, output.data()[std::size_t(yy) * width + xx]);
                 }
             }
-            const float cap = std::max(kPeakInputFactor * inputMax, kPeakNeighbourFactor * neighbourMax);
+            const float own = output.data()[p];
+            const float cap = std::max(kPeakInputFactor * inputMax, kPeakNeighbourFactor * ringMax);
             if (!(own > cap)) continue;  // NaN-safe: a NaN stays as it was
             const float scale = cap / own;
             float* out = radiance + p * 3;
