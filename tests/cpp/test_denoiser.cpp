@@ -250,8 +250,8 @@ TEST(Denoiser, ReportsTheTimeOfEveryStage) {
     ASSERT_EQ(stages.size(), 8u);
     EXPECT_EQ(stages.front(), "embedding");
     EXPECT_EQ(stages[5], "temporal kernel");
-    EXPECT_EQ(stages[6], "input fallback");
-    EXPECT_EQ(stages.back(), "peak guard");
+    EXPECT_EQ(stages[6], "peak guard");
+    EXPECT_EQ(stages.back(), "input fallback");
 }
 
 TEST(Denoiser, OddSizesWork) {

@@ -71,18 +71,20 @@ long long prepareSamples(const float* samples, int count, InputScales scales, fl
 }
 
 // Adds each of `pixels` pixels' Embedding::kSampleSumChannels sums (diffuse and specular RGB of
-// the sanitised `radiance`, and the squared luminance) over its spp samples in order to `sums`,
-// starting from 0 when `first`: one 8-lane add per sample (6 lanes used). `radiance` must have 2
-// readable floats past its last sample.
-void addSampleSums(const float* radiance, int pixels, int spp, bool first, float* sums) {
+// the sanitised `radiance`, the squared luminance, and the samples flagged emissive in the raw
+// `features`) over its spp samples in order to `sums`, starting from 0 when `first`: one 8-lane
+// add per sample (6 lanes used). `radiance` must have 2 readable floats past its last sample.
+void addSampleSums(const float* radiance, const float* features, int pixels, int spp, bool first, float* sums) {
     constexpr int kSums = Embedding::kSampleSumChannels;
     static_assert(Embedding::kSumDiffuse == 0 && Embedding::kSumSpecular == 3 &&
-                      Embedding::kSumLuminanceSquares == kRadianceChannels && kSums == kRadianceChannels + 1,
-                  "the sums are laid out as a sample's radiance, then the squares");
+                      Embedding::kSumLuminanceSquares == kRadianceChannels &&
+                      Embedding::kSumEmissive == kRadianceChannels + 1 && kSums == kRadianceChannels + 2,
+                  "the sums are laid out as a sample's radiance, then the squares and the emitters");
     for (int p = 0; p < pixels; ++p) {
         float* o = sums + std::size_t(p) * kSums;
         Vec8f sum{};
         float squares = first ? 0.0f : o[Embedding::kSumLuminanceSquares];
+        float emitters = first ? 0.0f : o[Embedding::kSumEmissive];
         if (!first)
             for (int c = 0; c < kRadianceChannels; ++c) sum[c] = o[c];
         for (int s = 0; s < spp; ++s) {
@@ -91,9 +93,13 @@ void addSampleSums(const float* radiance, int pixels, int spp, bool first, float
             const float light[3] = {sample[0] + sample[3], sample[1] + sample[4], sample[2] + sample[5]};
             const float y = luminance(light);
             squares += y * y;
+            // NaN and other garbage count as no emitter.
+            if (features[(std::size_t(p) * spp + std::size_t(s)) * kFeatureCount + channel::kEmissive] > 0.5f)
+                emitters += 1.0f;
         }
         for (int c = 0; c < kRadianceChannels; ++c) o[c] = sum[c];
         o[Embedding::kSumLuminanceSquares] = squares;
+        o[Embedding::kSumEmissive] = emitters;
     }
 }
 
@@ -191,10 +197,10 @@ long long Embedding::forEachChunk(const SampleBands& samples, long long pixels, 
             const float* chunkInput = samples.pixels(p0, count, gather.data());
             bad += prepareSamples(chunkInput, n, scales, input.data(), radiance.data());
             if (sampleSums) {
-                addSampleSums(radiance.data(), count, spp, firstSums,
+                addSampleSums(radiance.data(), chunkInput, count, spp, firstSums,
                               sampleSums->data() + std::size_t(p0) * kSampleSumChannels);
             } else if (sink) {
-                addSampleSums(radiance.data(), count, spp, true, chunkSums.data());
+                addSampleSums(radiance.data(), chunkInput, count, spp, true, chunkSums.data());
                 (*sink)(p0, count, chunkSums.data());
             }
 

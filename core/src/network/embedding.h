@@ -56,10 +56,12 @@ public:
 
     // Per-pixel sums over the samples that apply() and accumulate() can write beside the
     // embedding, without a second pass over the samples, added in sample order, of sanitised
-    // values (non-finite or negative read as 0): diffuse RGB, specular RGB, and the square of each
-    // sample's luminance (diffuse + specular), from which the input's noise is judged.
-    static constexpr int kSampleSumChannels = 7;
-    static constexpr int kSumDiffuse = 0, kSumSpecular = 3, kSumLuminanceSquares = 6;
+    // values (non-finite or negative read as 0): diffuse RGB, specular RGB, the square of each
+    // sample's luminance (diffuse + specular), from which the input's noise is judged, and how
+    // many samples saw an emitter first (the `emissive` flag above 0.5), which the peak guard
+    // reads.
+    static constexpr int kSampleSumChannels = 8;
+    static constexpr int kSumDiffuse = 0, kSumSpecular = 3, kSumLuminanceSquares = 6, kSumEmissive = 7;
 
     // samples: [pixels][spp][kFeatureCount] raw features (frame layout); scales from
     // section 1. Writes the per-pixel mean embedding to `output` (height x width x E).

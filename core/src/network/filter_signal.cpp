@@ -18,26 +18,25 @@ void signalFromSums(const float* sums, long long pixels, int spp, float* signal)
     }
 }
 
-void meanSquaresFromSums(const float* sums, long long pixels, int spp, float* meanSquares) {
+void sampleMeansFromSums(const float* sums, long long pixels, int spp, int sum, float* means) {
     // Larger values (radiance near kMaxRadiance, whose squares overflow) are kept at this: the box
     // sums of the stage that reads them run in double, and an infinity would not leave them.
     constexpr float kLargest = 1e30f;
     const float count = float(spp);
     for (long long p = 0; p < pixels; ++p) {
-        const float meanSquare =
-            sums[std::size_t(p) * Embedding::kSampleSumChannels + Embedding::kSumLuminanceSquares] / count;
-        meanSquares[p] = std::min(meanSquare, kLargest);  // (min of +Inf and kLargest is kLargest)
+        const float mean = sums[std::size_t(p) * Embedding::kSampleSumChannels + std::size_t(sum)] / count;
+        means[p] = std::min(mean, kLargest);  // (min of +Inf and kLargest is kLargest)
     }
 }
 
-void makeMeanSquares(const FeatureMap& sums, int spp, FeatureMap& meanSquares) {
-    if (sums.channels() != Embedding::kSampleSumChannels || spp < 1)
-        throw Error("mean squares: needs " + std::to_string(Embedding::kSampleSumChannels) +
-                    " sums over at least one sample");
-    meanSquares.resize(sums.height(), sums.width(), 1);
+void makeSampleMeans(const FeatureMap& sums, int spp, int sum, FeatureMap& means) {
+    if (sums.channels() != Embedding::kSampleSumChannels || spp < 1 || sum < 0 || sum >= Embedding::kSampleSumChannels)
+        throw Error("sample means: needs " + std::to_string(Embedding::kSampleSumChannels) +
+                    " sums over at least one sample, and one of them");
+    means.resize(sums.height(), sums.width(), 1);
     const int width = sums.width();
 #pragma omp parallel for schedule(static)
-    for (int y = 0; y < sums.height(); ++y) meanSquaresFromSums(sums.pixel(y, 0), width, spp, meanSquares.pixel(y, 0));
+    for (int y = 0; y < sums.height(); ++y) sampleMeansFromSums(sums.pixel(y, 0), width, spp, sum, means.pixel(y, 0));
 }
 
 void makeAccumulatedSignal(const FeatureMap& sums, int spp, FeatureMap& signal) {

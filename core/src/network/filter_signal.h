@@ -16,10 +16,12 @@ void makeAccumulatedSignal(const FeatureMap& sums, int spp, FeatureMap& signal);
 // at a time that need not be kept (Embedding::apply with a SumsSink).
 void signalFromSums(const float* sums, long long pixels, int spp, float* signal);
 
-// For the noise of that signal (docs/MODEL.md section 10, "Input fallback"): per pixel, the
-// mean over its `spp` samples of their squared luminance. meanSquares: height x width x 1.
-void makeMeanSquares(const FeatureMap& sums, int spp, FeatureMap& meanSquares);
+// Per pixel, the mean over its `spp` samples of one of the sums: Embedding::kSumLuminanceSquares
+// for the noise of the signal (docs/MODEL.md section 10, "Input fallback"),
+// Embedding::kSumEmissive for the share of its samples that saw an emitter ("Peak guard").
+// means: height x width x 1, at most 1e30.
+void makeSampleMeans(const FeatureMap& sums, int spp, int sum, FeatureMap& means);
 // The same for `pixels` consecutive pixels' sums, on the calling thread.
-void meanSquaresFromSums(const float* sums, long long pixels, int spp, float* meanSquares);
+void sampleMeansFromSums(const float* sums, long long pixels, int spp, int sum, float* means);
 
 }  // namespace affinity

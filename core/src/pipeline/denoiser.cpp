@@ -211,6 +211,10 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     // The last kernel's output is the radiance (and stays the temporal kernel's history as it is).
     const float* output = history.output.data();
     std::vector<float> radiance(output, output + std::size_t(width) * std::size_t(height) * kSignalChannels);
+    if (ablation.peakGuard) {
+        guardPeaks(frame.signal, frame.meanSquares, frame.emissiveShare, frame.spp, radiance.data(), pool);
+        clock.mark("peak guard");
+    }
     if (net.lightRestoration && ablation.lightRestoration) {
         restoreLight(frame.signal, motion, valid, useHistory, history.light, radiance.data(), pool);
         clock.mark("light restoration");
@@ -220,11 +224,8 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
                         radiance.data(), pool);
         clock.mark("input fallback");
     }
-    if (ablation.peakGuard) {
-        guardPeaks(frame.signal, radiance.data(), pool);
-        clock.mark("peak guard");
-    }
     pool.give(frame.meanSquares);
+    pool.give(frame.emissiveShare);
     pool.give(frame.signal);
     local.bufferBytes = pool.heldCapacity() * sizeof(float);
     if (report) *report = local;

@@ -68,13 +68,17 @@ EmbeddedFrame embedWholeFrame(const Network& net, FeatureMapPool& pool, Sequence
     // largest while the samples are held.
     frame.signal = pool.take(height, samples.width, kSignalChannels);
     frame.meanSquares = pool.take(height, samples.width, 1);
+    frame.emissiveShare = pool.take(height, samples.width, 1);
     const int spp = frame.spp = samples.spp;
     float* signal = frame.signal.data();
     float* meanSquares = frame.meanSquares.data();
+    float* emissiveShare = frame.emissiveShare.data();
     frame.invalidRadiance = net.embedding->apply(
         samples, height, scales, frame.embedding, [&](long long firstPixel, int count, const float* sums) {
             signalFromSums(sums, count, spp, signal + std::size_t(firstPixel) * std::size_t(kSignalChannels));
-            meanSquaresFromSums(sums, count, spp, meanSquares + std::size_t(firstPixel));
+            sampleMeansFromSums(sums, count, spp, Embedding::kSumLuminanceSquares,
+                                meanSquares + std::size_t(firstPixel));
+            sampleMeansFromSums(sums, count, spp, Embedding::kSumEmissive, emissiveShare + std::size_t(firstPixel));
         });
     return frame;
 }
@@ -177,7 +181,9 @@ EmbeddedFrame FrameInput::finishStreamed(const Network& net, FeatureMapPool& poo
     frame.signal = pool.take(sampleSums_.height(), sampleSums_.width(), kSignalChannels);
     makeAccumulatedSignal(sampleSums_, spp_, frame.signal);
     frame.meanSquares = pool.take(sampleSums_.height(), sampleSums_.width(), 1);
-    makeMeanSquares(sampleSums_, spp_, frame.meanSquares);
+    makeSampleMeans(sampleSums_, spp_, Embedding::kSumLuminanceSquares, frame.meanSquares);
+    frame.emissiveShare = pool.take(sampleSums_.height(), sampleSums_.width(), 1);
+    makeSampleMeans(sampleSums_, spp_, Embedding::kSumEmissive, frame.emissiveShare);
     frame.spp = spp_;
     pool.give(sampleSums_);
     frame.invalidRadiance = invalidRadiance_;

@@ -18,12 +18,13 @@ namespace affinity {
 
 // A frame after its first stage: what the later stages read.
 struct EmbeddedFrame {
-    FeatureMap embedding;     // per pixel, docs/MODEL.md section 2 (from the pool)
-    FeatureMap signal;        // to accumulate and filter, filter_signal.h (from the pool)
-    FeatureMap meanSquares;   // the mean squared luminance of the samples, filter_signal.h (pool)
-    int spp = 0;              // samples per pixel
-    float depthScale = 0.0f;  // 1 / the mean depth of the samples that hit something; 0: none did
-    float exposure = 1.0f;    // the factor on the radiance the network saw
+    FeatureMap embedding;      // per pixel, docs/MODEL.md section 2 (from the pool)
+    FeatureMap signal;         // to accumulate and filter, filter_signal.h (from the pool)
+    FeatureMap meanSquares;    // the mean squared luminance of the samples, filter_signal.h (pool)
+    FeatureMap emissiveShare;  // the share of the samples that saw an emitter, filter_signal.h (pool)
+    int spp = 0;               // samples per pixel
+    float depthScale = 0.0f;   // 1 / the mean depth of the samples that hit something; 0: none did
+    float exposure = 1.0f;     // the factor on the radiance the network saw
     long long invalidRadiance = 0;
     double batchMilliseconds = 0.0;  // spent on the batches (addSamples) before the frame's last call
 

@@ -1,23 +1,31 @@
 #include "pipeline/peak_guard.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstddef>
 
 #include "kernels/luminance.h"
 
 namespace affinity {
 
-long guardPeaks(const FeatureMap& noisy, float* radiance, FeatureMapPool& pool) {
+float peakSupport(float luminance, float meanSquare, float emissiveShare, int spp) {
+    if (emissiveShare > 0.0f) return luminance;
+    return std::max(0.0f, luminance - std::sqrt(meanSquare / float(std::max(spp, 1))));
+}
+
+long guardPeaks(const FeatureMap& noisy, const FeatureMap& meanSquares, const FeatureMap& emissiveShare, int spp,
+                float* radiance, FeatureMapPool& pool) {
     const int height = noisy.height(), width = noisy.width();
     const std::size_t pixels = std::size_t(height) * std::size_t(width);
     FeatureMap input = pool.take(height, width, 1), output = pool.take(height, width, 1);
     FeatureMap rowMax = pool.take(height, width, 1);
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) {
-        input.data()[p] = luminance(noisy.data() + std::size_t(p) * 3);
+        input.data()[p] = peakSupport(luminance(noisy.data() + std::size_t(p) * 3), meanSquares.data()[p],
+                                      emissiveShare.data()[p], spp);
         output.data()[p] = luminance(radiance + std::size_t(p) * 3);
     }
-    // The input's 3 x 3 maximum, along rows then columns.
+    // The support's 3 x 3 maximum, along rows then columns.
 #pragma omp parallel for schedule(static)
     for (int y = 0; y < height; ++y) {
         const float* row = input.data() + std::size_t(y) * width;
