@@ -16,8 +16,8 @@
 #include "pipeline/feature_map_pool.h"
 #include "pipeline/frame_input.h"
 #include "pipeline/input_fallback.h"
-#include "pipeline/peak_guard.h"
 #include "pipeline/light_restoration.h"
+#include "pipeline/peak_guard.h"
 #include "pipeline/sequence_history.h"
 #include "pipeline/stages.h"
 

@@ -44,7 +44,7 @@ long guardPeaks(const FeatureMap& noisy, const FeatureMap& meanSquares, const Fe
             const std::size_t p = std::size_t(y) * width + x;
             float inputMax = 0.0f, ringMax = 0.0f;
             for (int dy = -1; dy <= 1; ++dy)
-                if (y + dy >= 0 && y + dy < height) inputMax = std::max(inputMax, rowMax.data()[p + dy * width]);
+                if (y + dy >= 0 && y + dy < height) inputMax = std::max(inputMax, rowMax.pixel(y + dy, x)[0]);
             for (int dy = -kPeakRing; dy <= kPeakRing; ++dy) {
                 const int yy = y + dy;
                 if (yy < 0 || yy >= height) continue;
