@@ -7,6 +7,39 @@
 #include "kernels/luminance.h"
 
 namespace affinity {
+namespace {
+
+// result(y, x) = the largest of map(y, x - radius .. x + radius) inside the image (1 channel).
+void maxAlongRows(const FeatureMap& map, int radius, FeatureMap& result) {
+    const int width = map.width();
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < map.height(); ++y) {
+        const float* row = map.pixel(y, 0);
+        float* out = result.pixel(y, 0);
+        for (int x = 0; x < width; ++x) {
+            float m = row[x];
+            for (int xx = std::max(0, x - radius); xx <= std::min(width - 1, x + radius); ++xx)
+                m = std::max(m, row[xx]);
+            out[x] = m;
+        }
+    }
+}
+
+// result(y, x) = the largest of map(y - radius .. y + radius, x) inside the image (1 channel).
+void maxAlongColumns(const FeatureMap& map, int radius, FeatureMap& result) {
+    const int height = map.height(), width = map.width();
+#pragma omp parallel for schedule(static)
+    for (int y = 0; y < height; ++y) {
+        float* out = result.pixel(y, 0);
+        std::copy(map.pixel(y, 0), map.pixel(y, 0) + width, out);
+        for (int yy = std::max(0, y - radius); yy <= std::min(height - 1, y + radius); ++yy) {
+            const float* row = map.pixel(yy, 0);
+            for (int x = 0; x < width; ++x) out[x] = std::max(out[x], row[x]);
+        }
+    }
+}
+
+}  // namespace
 
 float peakSupport(float luminance, float meanSquare, float emissiveShare, int spp) {
     if (emissiveShare > 0.0f) return luminance;
@@ -17,56 +50,43 @@ long guardPeaks(const FeatureMap& noisy, const FeatureMap& meanSquares, const Fe
                 float* radiance, FeatureMapPool& pool) {
     const int height = noisy.height(), width = noisy.width();
     const std::size_t pixels = std::size_t(height) * std::size_t(width);
-    FeatureMap input = pool.take(height, width, 1), output = pool.take(height, width, 1);
-    FeatureMap rowMax = pool.take(height, width, 1);
+    FeatureMap support = pool.take(height, width, 1), output = pool.take(height, width, 1);
+    FeatureMap scratch = pool.take(height, width, 1), columns = pool.take(height, width, 1);
 #pragma omp parallel for schedule(static)
     for (std::ptrdiff_t p = 0; p < std::ptrdiff_t(pixels); ++p) {
-        input.data()[p] = peakSupport(luminance(noisy.data() + std::size_t(p) * 3), meanSquares.data()[p],
-                                      emissiveShare.data()[p], spp);
+        support.data()[p] = peakSupport(luminance(noisy.data() + std::size_t(p) * 3), meanSquares.data()[p],
+                                        emissiveShare.data()[p], spp);
         output.data()[p] = luminance(radiance + std::size_t(p) * 3);
     }
-    // The support's 3 x 3 maximum, along rows then columns.
-#pragma omp parallel for schedule(static)
-    for (int y = 0; y < height; ++y) {
-        const float* row = input.data() + std::size_t(y) * width;
-        float* result = rowMax.data() + std::size_t(y) * width;
-        for (int x = 0; x < width; ++x) {
-            float m = row[x];
-            if (x > 0) m = std::max(m, row[x - 1]);
-            if (x + 1 < width) m = std::max(m, row[x + 1]);
-            result[x] = m;
-        }
-    }
+    // The support's 3 x 3 maximum (into `support`). The ring kPeakRing pixels away is the rows
+    // kPeakRing above and below, 2 kPeakRing + 1 wide (`scratch`), and the columns kPeakRing to
+    // the left and right, 2 kPeakRing - 1 tall (`columns`).
+    maxAlongRows(support, 1, scratch);
+    maxAlongColumns(scratch, 1, support);
+    maxAlongRows(output, kPeakRing, scratch);
+    maxAlongColumns(output, kPeakRing - 1, columns);
     long capped = 0;
 #pragma omp parallel for schedule(static) reduction(+ : capped)
     for (int y = 0; y < height; ++y) {
         for (int x = 0; x < width; ++x) {
-            const std::size_t p = std::size_t(y) * width + x;
-            float inputMax = 0.0f, ringMax = 0.0f;
-            for (int dy = -1; dy <= 1; ++dy)
-                if (y + dy >= 0 && y + dy < height) inputMax = std::max(inputMax, rowMax.pixel(y + dy, x)[0]);
-            for (int dy = -kPeakRing; dy <= kPeakRing; ++dy) {
-                const int yy = y + dy;
-                if (yy < 0 || yy >= height) continue;
-                // The whole row at the ring's top and bottom, its two ends in between.
-                const int step = (dy == -kPeakRing || dy == kPeakRing) ? 1 : 2 * kPeakRing;
-                for (int dx = -kPeakRing; dx <= kPeakRing; dx += step) {
-                    const int xx = x + dx;
-                    if (xx >= 0 && xx < width) ringMax = std::max(ringMax, output.data()[std::size_t(yy) * width + xx]);
-                }
-            }
-            const float own = output.data()[p];
-            const float cap = std::max(kPeakInputFactor * inputMax, kPeakNeighbourFactor * ringMax);
+            float ringMax = 0.0f;
+            if (y >= kPeakRing) ringMax = std::max(ringMax, scratch.pixel(y - kPeakRing, x)[0]);
+            if (y + kPeakRing < height) ringMax = std::max(ringMax, scratch.pixel(y + kPeakRing, x)[0]);
+            if (x >= kPeakRing) ringMax = std::max(ringMax, columns.pixel(y, x - kPeakRing)[0]);
+            if (x + kPeakRing < width) ringMax = std::max(ringMax, columns.pixel(y, x + kPeakRing)[0]);
+            const float own = output.pixel(y, x)[0];
+            const float cap = std::max(kPeakInputFactor * support.pixel(y, x)[0], kPeakNeighbourFactor * ringMax);
             if (!(own > cap)) continue;  // NaN-safe: a NaN stays as it was
             const float scale = cap / own;
-            float* out = radiance + p * 3;
+            float* out = radiance + (std::size_t(y) * width + x) * 3;
             for (int c = 0; c < 3; ++c) out[c] *= scale;
             ++capped;
         }
     }
-    pool.give(input);
+    pool.give(support);
     pool.give(output);
-    pool.give(rowMax);
+    pool.give(scratch);
+    pool.give(columns);
     return capped;
 }
 
