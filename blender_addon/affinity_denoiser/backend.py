@@ -30,6 +30,10 @@ class SequenceDenoiser(Protocol):
 
     def reset(self) -> None: ...
 
+    # Whether a frame of this size and camera would carry the history on (a jump of the camera
+    # as at a cut would not); asked before the frame is rendered.
+    def continues_sequence(self, width: int, height: int, world_to_camera: np.ndarray) -> bool: ...
+
 
 #: The model the extension denoises with when the panel names none: the core's small model with a
 #: fourth, wider kernel, fine-tuned on Cycles frames captured through this extension
@@ -184,3 +188,6 @@ class MeanDenoiser:
 
     def reset(self) -> None:
         pass
+
+    def continues_sequence(self, width: int, height: int, world_to_camera: np.ndarray) -> bool:
+        return True  # it keeps no history, so no jump of the camera cuts one

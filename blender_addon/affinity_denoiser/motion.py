@@ -49,24 +49,6 @@ class Camera:
         return np.linalg.inv(self.world_to_camera)
 
 
-#: A camera change between two frames that the core takes for a cut and starts a new sequence
-#: after (core/src/pipeline/sequence_history.cpp): the view turned by more than this many
-#: degrees, or the camera moved by more than this share of the scene's mean depth.
-CUT_DEGREES = 45.0
-CUT_DEPTH_SHARE = 0.5
-
-
-def is_cut(previous: Camera, current: Camera, mean_depth: float) -> bool:
-    """Whether ``current`` jumps from ``previous`` as a cut does (``mean_depth``: the previous
-    frame's mean depth; 0 when unknown, which leaves only the turn)."""
-    forward = previous.world_to_camera[2, :3], current.world_to_camera[2, :3]
-    cosine = float(np.dot(*forward) / (np.linalg.norm(forward[0]) * np.linalg.norm(forward[1])))
-    if np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))) > CUT_DEGREES:
-        return True
-    distance = float(np.linalg.norm(previous.camera_to_world[:3, 3] - current.camera_to_world[:3, 3]))
-    return mean_depth > 0.0 and distance > CUT_DEPTH_SHARE * mean_depth
-
-
 def render_size(scene: Any) -> tuple[int, int]:
     render = scene.render
     scale = render.resolution_percentage / 100.0

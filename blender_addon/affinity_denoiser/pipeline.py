@@ -239,12 +239,10 @@ class SequenceCapture:
         self._names: dict[str, str] | None = None
         #: The last frame denoised since the history began; None with no history.
         self.last_frame: int | None = None
-        #: The scene camera of that frame, where it was, and the mean depth it saw: another
-        #: camera (a cut by camera markers) or a jump of this one (motion.is_cut) starts a new
-        #: sequence, pre-rolled like the first.
+        #: The scene camera of that frame: another camera (a cut by camera markers), or a jump of
+        #: this one that the core would not carry its history across (its continues_sequence),
+        #: starts a new sequence, pre-rolled like the first.
         self._camera_name: str | None = None
-        self._camera: motion.Camera | None = None
-        self._mean_depth = 0.0
 
     def reset(self) -> None:
         """Forgets the history: the next frame starts a new sequence."""
@@ -252,7 +250,6 @@ class SequenceCapture:
         self._previous = None
         self.last_frame = None
         self._camera_name = None
-        self._camera = None
 
     def frame(self, frame: int,
               before_sample: Callable[[int], None] | None = None) -> Generator[int, None, DenoisedFrame]:
@@ -264,8 +261,10 @@ class SequenceCapture:
         scene.frame_set(frame)
         depsgraph = bpy.context.evaluated_depsgraph_get()
         camera = motion.scene_camera(scene, depsgraph)
-        if self._camera is not None and (scene.camera.name != self._camera_name
-                                         or motion.is_cut(self._camera, camera, self._mean_depth)):
+        if self.last_frame is not None and (
+                scene.camera.name != self._camera_name
+                or not self.denoiser.continues_sequence(camera.width, camera.height,
+                                                        camera.world_to_camera.astype(np.float32))):
             self.reset()  # a camera cut: nothing before it is history
         start = time.perf_counter()
         transforms = motion.object_transforms(depsgraph)
@@ -288,7 +287,6 @@ class SequenceCapture:
         sums: dict[str, np.ndarray] = {}
         first: dict[str, np.ndarray] = {}
         geometry = None
-        mean_depth = 0.0  # of sample 0's hits: what the next frame's cut test measures a move by
         for sample in range(spp):
             if before_sample is not None:
                 before_sample(sample)
@@ -305,8 +303,6 @@ class SequenceCapture:
                 samples[:, :, sample] = sample_features
             if sample == 0:  # Cycles writes Z for the sample at offset 0 only
                 geometry = self._geometry(captured, names, camera, transforms)
-                depth = sample_features[..., features.DEPTH]
-                mean_depth = float(depth[depth > 0.0].mean()) if (depth > 0.0).any() else 0.0
             else:
                 assert geometry is not None
                 geometry.add_surfaces(captured[names["aov_distance"]][..., 0],
@@ -347,7 +343,6 @@ class SequenceCapture:
                                f"expected {noisy.shape}")
         self.last_frame = frame
         self._camera_name = scene.camera.name
-        self._camera, self._mean_depth = camera, mean_depth
         combined_name = passes.PASS_NAMES["combined"][0]
         alpha = mean[combined_name][..., 3:4] if combined_name in mean else np.ones_like(noisy[..., :1])
         rgba = np.concatenate([denoised, alpha], axis=-1)

@@ -246,6 +246,13 @@ class Denoiser:
     def reset(self) -> None:
         self._native.reset()
 
+    def continues_sequence(self, width: int, height: int, world_to_camera: Any) -> bool:
+        """Whether a width x height frame seen through ``world_to_camera`` (4, 4) would carry the
+        history on, asked before its samples exist: False without a history, after a size
+        change, or where the camera jumped as at a cut (turned by more than 45 degrees, or moved
+        by more than half the last frame's mean depth), where ``denoise`` would drop it."""
+        return self._native.continues_sequence(width, height, world_to_camera)
+
     # A Denoiser is one sequence's history in native memory: a copy would share it, and two
     # copies fed different frames would corrupt each other's sequence.
     def _refuse_copy(self, *_: Any) -> Any:

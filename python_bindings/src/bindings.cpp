@@ -463,5 +463,11 @@ PYBIND11_MODULE(_core, m) {
         .def("discard_samples", &Denoiser::discardSamples)
         .def_property_readonly("pending_samples", [](const Denoiser& self) { return self.pending().spp; })
         .def("reset", &Denoiser::reset)
+        .def(
+            "continues_sequence",
+            [](const Denoiser& self, int width, int height, const py::handle& worldToCamera) {
+                return self.continuesSequence(width, height, matrixValue(worldToCamera, "world_to_camera"));
+            },
+            py::arg("width"), py::arg("height"), py::arg("world_to_camera"))
         .def_property_readonly("model", &Denoiser::model);
 }

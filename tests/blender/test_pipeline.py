@@ -13,7 +13,7 @@ import pytest
 import scenes
 from conftest import CORE_IO_AVAILABLE, capture, material_snapshot
 
-from affinity_denoiser import backend, compositor, features, motion, passes, pipeline
+from affinity_denoiser import backend, compositor, features, passes, pipeline
 
 REFERENCE_SPP = 256
 
@@ -488,25 +488,6 @@ def test_a_jump_of_one_camera_is_a_cut_too(tmp_path: Any) -> None:
     assert [len(r.preroll_data) for r in steady.results] == [1, 0, 0]
     after_jump = turned.results[1].frame_data
     assert after_jump["valid"].all() and not after_jump["motion"].any()
-
-
-def test_a_cut_is_a_turn_past_45_degrees_or_a_move_past_half_the_depth() -> None:
-    def camera(degrees: float, x: float) -> motion.Camera:
-        angle = math.radians(degrees)
-        to_world = np.eye(4)
-        to_world[:3, :3] = [[math.cos(angle), -math.sin(angle), 0.0], [math.sin(angle), math.cos(angle), 0.0],
-                            [0.0, 0.0, 1.0]]
-        to_world[:3, :3] = to_world[:3, :3] @ [[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]]  # look along +y
-        to_world[0, 3] = x
-        return motion.Camera(np.linalg.inv(to_world), np.eye(4), 8, 8, False, 0.1)
-
-    start = camera(0.0, 0.0)
-    assert not motion.is_cut(start, camera(44.0, 0.0), 10.0)
-    assert motion.is_cut(start, camera(46.0, 0.0), 10.0)
-    assert motion.is_cut(start, camera(-46.0, 0.0), 0.0)  # the turn counts without a depth
-    assert not motion.is_cut(start, camera(0.0, 4.9), 10.0)
-    assert motion.is_cut(start, camera(0.0, 5.1), 10.0)
-    assert not motion.is_cut(start, camera(0.0, 50.0), 0.0)  # nothing hit: no scale to judge a move
 
 
 def test_a_preroll_out_of_range_is_refused() -> None:

@@ -49,6 +49,43 @@ def test_reset_makes_the_next_frame_independent_of_the_past(sequence: list[dict]
     np.testing.assert_array_equal(a.denoise(sequence[1]), b.denoise(sequence[1]))
 
 
+def _moved(world_to_camera: np.ndarray, degrees: float, shift: float = 0.0) -> np.ndarray:
+    """The camera turned about its own y axis by `degrees`, then moved `shift` along its x axis."""
+    angle = np.radians(degrees)
+    turn = np.eye(4)
+    turn[[0, 0, 2, 2], [0, 2, 0, 2]] = [np.cos(angle), np.sin(angle), -np.sin(angle), np.cos(angle)]
+    to_world = np.linalg.inv(world_to_camera.astype(np.float64)) @ turn
+    to_world[:3, 3] += shift * to_world[:3, 0]
+    return np.linalg.inv(to_world).astype(np.float32)
+
+
+def test_a_frame_continues_the_sequence_unless_the_camera_jumps_as_at_a_cut(sequence: list[dict]) -> None:
+    # Every sample at depth 10: the mean depth that a move is measured by.
+    frame = {**sequence[0], "samples": sequence[0]["samples"].copy()}
+    frame["samples"][..., 9] = 10.0
+    camera = frame["info"]["world_to_camera"]
+    denoiser = affinity_core.Denoiser()
+    assert not denoiser.continues_sequence(40, 30, camera)  # no history yet
+    denoiser.denoise(frame)
+    assert denoiser.continues_sequence(40, 30, camera)
+    assert not denoiser.continues_sequence(40, 31, camera)
+    assert denoiser.continues_sequence(40, 30, _moved(camera, 44.0))
+    assert not denoiser.continues_sequence(40, 30, _moved(camera, 46.0))
+    assert not denoiser.continues_sequence(40, 30, _moved(camera, -46.0))
+    assert denoiser.continues_sequence(40, 30, _moved(camera, 0.0, 4.9))
+    assert not denoiser.continues_sequence(40, 30, _moved(camera, 0.0, 5.1))
+    # What it answers is what denoising the frame does with the history.
+    for jumped, kept in ((_moved(camera, 0.0, 4.9), True), (_moved(camera, 0.0, 5.1), False)):
+        again = affinity_core.Denoiser()
+        again.denoise(frame)
+        again.denoise({**frame, "info": {**frame["info"], "world_to_camera": jumped}})
+        assert again.last_report["used_history"] == kept
+    denoiser.reset()
+    assert not denoiser.continues_sequence(40, 30, camera)
+    with pytest.raises(ValueError, match="world_to_camera has shape"):
+        denoiser.continues_sequence(40, 30, np.eye(3, dtype=np.float32))
+
+
 def test_bad_radiance_is_counted(sequence: list[dict]) -> None:
     frame = {**sequence[0], "samples": sequence[0]["samples"].copy()}
     frame["samples"][0, 0, 0, 0] = np.nan

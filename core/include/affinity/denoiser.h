@@ -76,6 +76,12 @@ public:
     PendingFrame pending() const;
 
     void reset();
+    // Whether a frame of this size seen from this camera would carry the history on, asked
+    // before any of its samples exist: false without a history, after a size change, or where
+    // the camera jumped as at a cut (turned by more than 45 degrees, or moved by more than half
+    // the last frame's mean depth: the rule by which denoise() drops the history, the frame's own
+    // depth unknown here). The Blender extension pre-rolls a frame that would not.
+    bool continuesSequence(int width, int height, const Matrix4& worldToCamera) const;
 
     // Called on the calling thread between the steps of a frame (each convolution, each band of
     // the kernels; at 1080p the longest step takes tens of milliseconds): when it returns true,

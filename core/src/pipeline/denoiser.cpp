@@ -99,6 +99,13 @@ void Denoiser::reset() {
     state_->history.drop();
 }
 
+bool Denoiser::continuesSequence(int width, int height, const Matrix4& worldToCamera) const {
+    const Exclusive call(state_->busy, "continuesSequence");
+    FrameInfo info;
+    info.worldToCamera = worldToCamera;
+    return state_->history.continuedByCamera(width, height, info);
+}
+
 void Denoiser::setInterruptCheck(std::function<bool()> check) {
     const Exclusive call(state_->busy, "setInterruptCheck");
     state_->interrupted.check = std::move(check);

@@ -50,6 +50,11 @@ bool SequenceHistory::continuedBy(int width, int height, const FrameInfo& info, 
     return has_ && applies(width, height, info, meanDepth, ignored);
 }
 
+bool SequenceHistory::continuedByCamera(int width, int height, const FrameInfo& info) const {
+    std::string ignored;
+    return has_ && applies(width, height, info, lastMeanDepth_, ignored);
+}
+
 bool SequenceHistory::continuedBySize(int width, int height) const {
     return has_ && width == lastWidth_ && height == lastHeight_;
 }

@@ -28,6 +28,9 @@ public:
     void drop() { has_ = false; }
     // Whether a frame of this size, camera and mean depth (0: nothing hit) continues the sequence.
     bool continuedBy(int width, int height, const FrameInfo& info, float meanDepth) const;
+    // The same asked before the frame's samples exist: its mean depth unknown, the last frame's
+    // stands for it.
+    bool continuedByCamera(int width, int height, const FrameInfo& info) const;
     // The same known from the size alone (a streamed frame's first batch, before its camera).
     bool continuedBySize(int width, int height) const;
     // Starts a frame: drops the history where the frame cannot use it (saying why in
