@@ -51,8 +51,7 @@ bool SequenceHistory::continuedBy(int width, int height, const FrameInfo& info, 
 }
 
 bool SequenceHistory::continuedByCamera(int width, int height, const FrameInfo& info) const {
-    std::string ignored;
-    return has_ && applies(width, height, info, lastMeanDepth_, ignored);
+    return continuedBy(width, height, info, lastMeanDepth_);
 }
 
 bool SequenceHistory::continuedBySize(int width, int height) const {
