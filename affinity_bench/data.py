@@ -145,22 +145,29 @@ def with_spp(frame: dict[str, Any], spp: int) -> dict[str, Any]:
             "valid": frame["valid"], "reference": None, "info": frame["info"]}
 
 
-#: Samples of each frame of the extension's pre-roll, whatever the samples per frame: its
-#: default (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_SAMPLES).
-PREROLL_SAMPLES = 8
+#: The extension's pre-roll: frames and samples of each frame, whatever the samples per frame
+#: (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_FRAMES and
+#: DEFAULT_PREROLL_SAMPLES).
+PREROLL_FRAMES = 1
+PREROLL_SAMPLES = 16
 
 
 def preroll_groups(frame: dict[str, Any], spp: int, captured: list[np.ndarray] | None = None,
-                   preroll_spp: int = PREROLL_SAMPLES) -> list[np.ndarray]:
+                   preroll_frames: int = PREROLL_FRAMES, preroll_spp: int = PREROLL_SAMPLES) -> list[np.ndarray]:
     """The sample groups a pre-roll of the first frame denoises at `spp` (methods.py), each
-    [H, W, samples, 18]. With `captured` (the extension's own pre-roll frames, as capture.py
-    keeps them): the first `preroll_spp` samples of each, which is what the extension renders
-    with that many pre-roll samples, whatever `spp`. Without: the frame's samples after its
-    first `spp`, in groups of `spp` (other samples of the same frame)."""
+    [H, W, samples, 18]: `preroll_frames` groups of `preroll_spp` samples, drawn in order from a
+    pool of the first frame's samples that its own `spp` do not use. With `captured` (the
+    extension's own pre-roll frames, as capture.py keeps them, in groups of its --spp) the pool
+    is all of theirs, whatever `spp`, and must hold the whole pre-roll. Without, it is the
+    frame's samples after its first `spp`, which make as many groups as they hold, the last
+    one smaller where the pool runs out."""
     if captured:
-        if any(group.shape[2] < preroll_spp for group in captured):
-            raise ValueError(f"the captured pre-roll has fewer than {preroll_spp} samples per pixel")
-        return [np.ascontiguousarray(group[:, :, :preroll_spp]) for group in captured]
-    spare = frame["samples"][:, :, spp:]
-    return [np.ascontiguousarray(spare[:, :, g * spp:(g + 1) * spp]) for g in range(spare.shape[2] // spp)]
+        pool = np.concatenate(captured, axis=2)
+        if pool.shape[2] < preroll_frames * preroll_spp:
+            raise ValueError(f"the captured pre-roll holds {pool.shape[2]} samples per pixel, fewer than the "
+                             f"{preroll_frames} x {preroll_spp} asked")
+    else:
+        pool = frame["samples"][:, :, spp:]
+    return [np.ascontiguousarray(pool[:, :, g * preroll_spp:(g + 1) * preroll_spp])
+            for g in range(preroll_frames) if g * preroll_spp < pool.shape[2]]
 

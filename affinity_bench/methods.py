@@ -18,7 +18,7 @@ import numpy as np
 
 import affinity_core
 
-from .data import PREROLL_SAMPLES
+from .data import PREROLL_FRAMES, PREROLL_SAMPLES
 
 Runner = Callable[[dict[str, Any]], np.ndarray]
 
@@ -81,16 +81,10 @@ def _ours(model: affinity_core.Model, ablation: str | None = None) -> Callable[[
     return start
 
 
-#: Pre-roll frames of the `+preroll` method, as the Blender extension's default
-#: (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_FRAMES); their samples are
-#: data.PREROLL_SAMPLES.
-PREROLL_FRAMES = 2
-
-
 class PrerollRunner:
     """The extension's pre-roll: before the first frame, `preroll` denoises groups of samples
     of it (data.preroll_groups) as frames of a still camera (output unused), so the first frame
-    starts with a history; at most PREROLL_FRAMES groups, fewer where the data holds fewer."""
+    starts with a history."""
 
     def __init__(self, model: affinity_core.Model) -> None:
         self.denoiser = affinity_core.Denoiser(model)
@@ -98,7 +92,7 @@ class PrerollRunner:
 
     def preroll(self, first: dict[str, Any], groups: list[np.ndarray]) -> None:
         still = np.zeros_like(first["motion"])
-        for index, samples in enumerate(groups[:PREROLL_FRAMES]):
+        for index, samples in enumerate(groups):
             valid = np.full_like(first["valid"], 1.0 if index > 0 else 0.0)
             self.denoiser.denoise(dict(first, samples=samples, motion=still, valid=valid))
         self.prerolled = bool(groups)
@@ -138,10 +132,10 @@ def make_methods(models: list[tuple[str, str]]) -> list[Method]:
         methods.append(Method(f"ours-{label}", "ours", f"affinity_core.Denoiser, model {label} ({path})", _ours(model)))
         methods.append(Method(f"ours-{label}+preroll", "ours",
                               f"model {label} with the Blender extension's pre-roll: before the first frame, "
-                              f"{PREROLL_FRAMES} frames denoised as a still camera: the extension's own pre-roll of "
-                              f"{PREROLL_SAMPLES} samples per frame where the sequence holds it (Cycles suite), else "
-                              "the first frame's spare samples (2 groups at 2 spp, 1 at 4, none at 8 with "
-                              "8-sample data); costs those frames' samples once per sequence",
+                              f"{PREROLL_FRAMES} frame(s) of {PREROLL_SAMPLES} samples denoised as a still camera: "
+                              "from the extension's own pre-roll where the sequence holds it (Cycles suite), else "
+                              "from the first frame's spare samples (fewer where it holds fewer); costs those "
+                              "samples once per sequence",
                               _prerolled(model)))
     if loaded:
         label, path, model = loaded[0]

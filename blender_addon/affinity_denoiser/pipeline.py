@@ -25,12 +25,14 @@ MAX_SAMPLES_PER_FRAME = 8
 #: the capture renders that frame this many more times with other samples and denoises them as
 #: frames of a still camera: the first frame then starts with a history. Costs this many frames'
 #: sub-renders once per sequence (docs/BLENDER.md, "Pre-roll").
-DEFAULT_PREROLL_FRAMES = 2
+DEFAULT_PREROLL_FRAMES = 1
 MAX_PREROLL_FRAMES = 8
 #: Samples of each pre-roll frame, whatever the frames' own count: the first frame's history is
-#: then as clean as an 8-sample frame's for a cost paid once per sequence (docs/BLENDER.md,
-#: "Pre-roll").
-DEFAULT_PREROLL_SAMPLES = 8
+#: then as clean as a 16-sample frame's for a cost paid once per sequence; one frame of 16 beats
+#: two of 8 (docs/BLENDER.md, "Pre-roll").
+DEFAULT_PREROLL_SAMPLES = 16
+#: The core's limit on a frame's samples (affinity/frame.h, kMaxSpp).
+MAX_PREROLL_SAMPLES = 64
 #: Added to the scene's seed (times the pre-roll frame's number) for the pre-roll's renders.
 PREROLL_SEED_STEP = 7_919_111
 
@@ -124,8 +126,8 @@ class Settings:
             raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
         if not 0 <= self.preroll_frames <= MAX_PREROLL_FRAMES:
             raise ValueError(f"pre-roll frames must be 0 to {MAX_PREROLL_FRAMES}")
-        if not 1 <= self.preroll_samples <= MAX_SAMPLES_PER_FRAME:
-            raise ValueError(f"pre-roll samples must be 1 to {MAX_SAMPLES_PER_FRAME}")
+        if not 1 <= self.preroll_samples <= MAX_PREROLL_SAMPLES:
+            raise ValueError(f"pre-roll samples must be 1 to {MAX_PREROLL_SAMPLES}")
 
 
 @dataclass

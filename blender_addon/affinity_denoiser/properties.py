@@ -12,7 +12,13 @@ from typing import Any
 
 import bpy
 
-from .pipeline import DEFAULT_PREROLL_FRAMES, DEFAULT_PREROLL_SAMPLES, MAX_PREROLL_FRAMES, MAX_SAMPLES_PER_FRAME
+from .pipeline import (
+    DEFAULT_PREROLL_FRAMES,
+    DEFAULT_PREROLL_SAMPLES,
+    MAX_PREROLL_FRAMES,
+    MAX_PREROLL_SAMPLES,
+    MAX_SAMPLES_PER_FRAME,
+)
 
 #: Where ``last_output_folder``'s value is kept (an ID property of the settings, saved with the
 #: .blend); the property itself has a getter only, so that scripts cannot set it.
@@ -86,7 +92,7 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
         "the first frame a cleaner history",
         default=DEFAULT_PREROLL_SAMPLES,
         min=1,
-        max=MAX_SAMPLES_PER_FRAME,
+        max=MAX_PREROLL_SAMPLES,
     )
     output_folder: bpy.props.StringProperty(
         name="Output Folder",

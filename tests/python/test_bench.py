@@ -218,7 +218,7 @@ def test_the_preroll_gives_the_first_frame_a_history_from_its_spare_samples() ->
     plain = [affinity_core.Denoiser(model).denoise(f) for f in inputs[:1]]
     assert data.preroll_groups(frames[0], 4) == []  # no sample left after 4
     np.testing.assert_array_equal(run([])[0], plain[0])
-    spare = data.preroll_groups(frames[0], 2)
+    spare = data.preroll_groups(frames[0], 2)  # 2 spare samples: one frame of 2, short of 16
     assert len(spare) == 1
     np.testing.assert_array_equal(spare[0], frames[0]["samples"][:, :, 2:4])
     prerolled, without = run(spare), run(None)
@@ -231,17 +231,26 @@ def test_the_preroll_gives_the_first_frame_a_history_from_its_spare_samples() ->
 
 
 def test_a_captured_preroll_is_used_as_the_extension_renders_it() -> None:
-    """data.preroll_groups with the extension's own pre-roll frames (capture.py's preroll.npz):
-    each frame's first `preroll_spp` samples (the extension's pre-roll samples), whatever the
-    samples per frame and whatever the frame itself holds."""
-    frame = {"samples": np.zeros((4, 5, 8, 18), np.float32)}
+    """data.preroll_groups with the extension's own pre-roll (capture.py's preroll.npz, groups
+    of the capture's 8 samples): its samples pooled, in order, into the extension's pre-roll
+    frames, whatever the samples per frame and whatever the frame itself holds; the spare
+    samples of the frame likewise where none was captured."""
+    frame = {"samples": np.random.default_rng(9).random((4, 5, 40, 18), dtype=np.float32)}
     captured = [np.random.default_rng(g).random((4, 5, 8, 18), dtype=np.float32) for g in range(2)]
     for spp in (2, 4, 8):
-        for preroll_spp in (4, 8):
-            groups = data.preroll_groups(frame, spp, captured, preroll_spp)
-            assert len(groups) == 2
-            for group, source in zip(groups, captured):
-                np.testing.assert_array_equal(group, source[:, :, :preroll_spp])
-    assert data.PREROLL_SAMPLES == 8  # the extension's DEFAULT_PREROLL_SAMPLES
-    with pytest.raises(ValueError, match="fewer than 16 samples"):
-        data.preroll_groups(frame, 2, captured, 16)
+        groups = data.preroll_groups(frame, spp, captured)  # the default: one frame of 16
+        assert len(groups) == 1
+        np.testing.assert_array_equal(groups[0][:, :, :8], captured[0])
+        np.testing.assert_array_equal(groups[0][:, :, 8:], captured[1])
+        two = data.preroll_groups(frame, spp, captured, preroll_frames=2, preroll_spp=8)
+        for group, source in zip(two, captured, strict=True):
+            np.testing.assert_array_equal(group, source)
+        spare = data.preroll_groups(frame, spp)
+        assert len(spare) == 1
+        np.testing.assert_array_equal(spare[0], frame["samples"][:, :, spp:spp + 16])
+    three = data.preroll_groups(frame, 8, preroll_frames=3, preroll_spp=12)  # 32 spare: 12, 12, 8
+    assert [g.shape[2] for g in three] == [12, 12, 8]
+    np.testing.assert_array_equal(three[2], frame["samples"][:, :, 32:40])
+    assert (data.PREROLL_FRAMES, data.PREROLL_SAMPLES) == (1, 16)  # the extension's defaults
+    with pytest.raises(ValueError, match="holds 16 samples per pixel, fewer than the 1 x 24 asked"):
+        data.preroll_groups(frame, 2, captured, preroll_spp=24)

@@ -245,8 +245,9 @@ def _capture_inputs(scene: Any, folder: str, settings: CaptureSettings,
 
 def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings, summary: dict[str, Any]) -> None:
     """The extension's pre-roll of the first frame (settings.preroll_frames frames, S samples
-    each, from the seeds the extension uses; the cache's S, 8, is the extension's default
-    pre-roll samples) into ``folder``/preroll.npz, written atomically;
+    each, from the seeds the extension uses; the benchmark pools them, in order, into the
+    extension's pre-roll frames: two of the cache's 8 make its default one frame of 16) into
+    ``folder``/preroll.npz, written atomically;
     ``summary`` records its frames and wall seconds. With the Tabulated Sobol pattern a
     pre-roll frame's first s samples are what the extension renders at s samples per frame
     (one-sample sub-renders at offsets 0..s-1 of the same seed); with Automatic on Blender

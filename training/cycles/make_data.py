@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import glob
 import json
+import math
 import os
 import shutil
 import sys
@@ -36,7 +37,7 @@ import capture  # noqa: E402
 import scene_generator  # noqa: E402
 
 import affinity_denoiser  # noqa: E402
-from affinity_denoiser.pipeline import DEFAULT_PREROLL_FRAMES  # noqa: E402
+from affinity_denoiser.pipeline import DEFAULT_PREROLL_FRAMES, DEFAULT_PREROLL_SAMPLES  # noqa: E402
 
 
 def seed_list(text: str) -> list[int]:
@@ -164,9 +165,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--train-target-spp", type=int, default=64)
     parser.add_argument("--val-target-spp", type=int, default=256)
     parser.add_argument("--blender-oidn-spp", type=spp_list, default=(2, 4, 8))
-    parser.add_argument("--preroll-frames", type=int, default=DEFAULT_PREROLL_FRAMES,
-                        help="keep the extension's pre-roll of each validation sequence's first frame "
-                             "(preroll.npz), added to complete sequences that lack it")
+    parser.add_argument("--preroll-frames", type=int, default=None,
+                        help="keep this many pre-roll frames of --spp samples of each validation "
+                             "sequence's first frame, as the extension renders them (preroll.npz), added "
+                             "to complete sequences that lack them; the benchmark pools them into the "
+                             "extension's pre-roll (default: enough for its default pre-roll)")
     parser.add_argument("--threads", type=int, default=2)
     parser.add_argument("--refresh-inputs", action="store_true",
                         help="capture again the inputs of sequences made by an older capture path "
@@ -175,6 +178,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="add samples to the reference halves of complete validation sequences "
                              "until each half has --val-target-spp, keeping their inputs")
     args = parser.parse_args(argv)
+    if args.preroll_frames is None:
+        args.preroll_frames = math.ceil(DEFAULT_PREROLL_FRAMES * DEFAULT_PREROLL_SAMPLES / args.spp)
     if args.deepen_references and args.refresh_inputs:
         parser.error("--deepen-references and --refresh-inputs are separate runs")
     if min(args.frames, args.train_frames) < 2:
