@@ -28,8 +28,8 @@ MAX_SAMPLES_PER_FRAME = 8
 DEFAULT_PREROLL_FRAMES = 1
 MAX_PREROLL_FRAMES = 8
 #: Samples of each pre-roll frame, whatever the frames' own count: the first frame's history is
-#: then as clean as a 16-sample frame's for a cost paid once per sequence; one frame of 16 beats
-#: two of 8 (docs/BLENDER.md, "Pre-roll").
+#: then as clean as a 16-sample frame's for a cost paid once per sequence; one frame of 16 scores
+#: above two of 8 on ColorVideoVDP and SMAPE (docs/BLENDER.md, "Pre-roll").
 DEFAULT_PREROLL_SAMPLES = 16
 #: The core's limit on a frame's samples (affinity/frame.h, kMaxSpp).
 MAX_PREROLL_SAMPLES = 64
