@@ -359,8 +359,9 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
     # Quality over six seeds: at 4 spp and 64x48 one seed's error swings by up to 4x, and one
     # firefly in a pre-roll frame can stay in the history (bpy 5.3.0, seed 0: 0.208 against
     # 0.122 without). Measured on bpy 5.0.1 with the extension's model: the default pre-roll
-    # (one frame of 16) takes the median relMSE to 0.91x and SMAPE to 0.80x of none's; two
-    # frames of 8 gave 0.82x and 0.81x (docs/BLENDER.md, "Pre-roll").
+    # (one frame of 16) takes the median relMSE to 0.87x and SMAPE to 0.80x of none's (with the
+    # model before, 0.91x and 0.80x, and two frames of 8 0.82x and 0.81x: docs/BLENDER.md,
+    # "Pre-roll").
     from affinity_core import metrics
     frames = pipeline.DEFAULT_PREROLL_FRAMES
     errors: dict[int, list[float]] = {0: [], frames: []}
