@@ -508,3 +508,7 @@ def test_a_preroll_out_of_range_is_refused() -> None:
     for samples in (0, pipeline.MAX_PREROLL_SAMPLES + 1):
         with pytest.raises(ValueError, match=f"pre-roll samples must be 1 to {pipeline.MAX_PREROLL_SAMPLES}"):
             pipeline.Settings(preroll_samples=samples).check()
+    from conftest import CORE_AVAILABLE
+    if CORE_AVAILABLE:  # the bound restates the core's, which the extension must not need to import
+        import affinity_core
+        assert pipeline.MAX_PREROLL_SAMPLES == affinity_core.MAX_SPP
