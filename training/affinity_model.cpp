@@ -89,7 +89,7 @@ AffinityModelImpl::AffinityModelImpl(const ModelConfig& config) : config_(config
         embed_->push_back(torch::nn::Linear(torch::nn::LinearOptions(in, width).bias(true)));
         in = width;
     }
-    unet_ = register_module("unet", UNet(config_.unetInputChannels(), config_));
+    unet_ = register_module("unet", UNet(2 * config_.embeddingChannels(), config_));
 }
 
 torch::Tensor AffinityModelImpl::embed(const torch::Tensor& networkInput) {
@@ -150,10 +150,7 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     }
 
     // Sections 4-5: U-Net and per-pixel parameters.
-    torch::Tensor unetInput = torch::cat({result.embedding, historyEmbedding}, 1);
-    if (config_.noiseInputsSpp > 0)
-        unetInput = torch::cat({unetInput, noiseInputs(prepared, samples.size(1), config_.noiseInputsSpp)}, 1);
-    result.head = unet_(unetInput);
+    result.head = unet_(torch::cat({result.embedding, historyEmbedding}, 1));
     const int K = config_.kernels, F = config_.affinityFeatures;
     for (int k = 0; k < K; ++k) {
         const std::int64_t base = std::int64_t(k) * config_.kernelChannels();

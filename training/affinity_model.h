@@ -36,7 +36,7 @@ TORCH_MODULE(ConvStack);
 class UNetImpl : public torch::nn::Module {
 public:
     UNetImpl(int inChannels, const ModelConfig& config);
-    torch::Tensor forward(const torch::Tensor& x);  // [B, 2E (+ 2 noise inputs), H, W] -> [B, P, H, W]
+    torch::Tensor forward(const torch::Tensor& x);  // [B, 2E, H, W] -> [B, P, H, W]
 
 private:
     std::vector<ConvStack> encoder_, decoder_;

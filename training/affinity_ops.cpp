@@ -1,9 +1,7 @@
 #include "affinity_ops.h"
 
 #include <ATen/ATen.h>
-#include <algorithm>
 #include <array>
-#include <cmath>
 
 #include <cstdlib>
 #include <limits>
@@ -12,7 +10,6 @@
 #include "affinity/error.h"
 #include "affinity/features.h"
 #include "fused_affinity_filter.h"
-#include "network/noise_inputs.h"
 #include "fused_warps.h"
 
 namespace affinity::train {
@@ -70,26 +67,7 @@ void checkImage(const at::Tensor& tensor, const char* what, std::int64_t channel
     }
 }
 
-// Rec. 709 luminance of the RGB channels along `dim` (size 3), that dimension kept with size 1.
-at::Tensor luminanceOf(const at::Tensor& rgb, std::int64_t dim) {
-    return 0.2126 * rgb.narrow(dim, 0, 1) + 0.7152 * rgb.narrow(dim, 1, 1) + 0.0722 * rgb.narrow(dim, 2, 1);
-}
-
 }  // namespace
-
-at::Tensor noiseInputs(const PreparedInputs& prepared, std::int64_t spp, int saturationSpp) {
-    const at::Tensor& radiance = prepared.radiance;
-    const std::int64_t batch = radiance.size(0);
-    const double count = std::log2(double(std::max<std::int64_t>(1, std::min<std::int64_t>(spp, saturationSpp))));
-    const at::Tensor countChannel = at::full_like(prepared.meanSquares, count * double(kNoiseCountScale));
-    const at::Tensor mean = luminanceOf(radiance, 1);
-    const double perSample = spp > 1 ? 1.0 / double(spp - 1) : 0.0;
-    const at::Tensor variance = (prepared.meanSquares - mean.square()).clamp_min(0.0) * perSample;
-    const at::Tensor exposure = at::where(prepared.exposure > 0, prepared.exposure, 1.0).view({batch, 1, 1, 1});
-    const double floor = double(kNoiseLuminanceFloor);
-    const at::Tensor relative = variance / (mean.square() + floor * floor / exposure.square());
-    return at::cat({countChannel, at::log1p(relative)}, 1);
-}
 
 at::Tensor exposureOf(const at::Tensor& cleanRadiance) {
     const std::int64_t spp = cleanRadiance.size(1);
@@ -134,9 +112,7 @@ PreparedInputs prepareInputs(const at::Tensor& samples, const at::Tensor& sequen
     const at::Tensor finite = at::isfinite(radiance);
     const at::Tensor clean = at::where(finite.logical_and(radiance > 0), radiance, 0.0);
     const at::Tensor invalidCount = finite.logical_not().logical_or(radiance < 0).sum(perFrame);
-    const at::Tensor light = clean.narrow(2, 0, 3) + clean.narrow(2, 3, 3);  // [B, S, 3, H, W]
-    const at::Tensor noisy = light.mean(1);
-    const at::Tensor meanSquares = luminanceOf(light, 2).square().mean(1);
+    const at::Tensor noisy = (clean.narrow(2, 0, 3) + clean.narrow(2, 3, 3)).mean(1);
 
     // Every other feature: non-finite values read as 0 (the core does the same).
     auto finiteOrZero = [](const at::Tensor& values) { return at::where(at::isfinite(values), values, 0.0); };
@@ -169,7 +145,7 @@ PreparedInputs prepareInputs(const at::Tensor& samples, const at::Tensor& sequen
         at::cat({at::log1p(exposed), finiteOrZero(samples.narrow(2, channel::kNormal, 3)), depth * scale,
                  finiteOrZero(samples.narrow(2, channel::kAlbedo, kFeatureCount - channel::kAlbedo))},
                 2);
-    return {networkInput, noisy, meanSquares, invalidCount, exposure};
+    return {networkInput, noisy, invalidCount, exposure};
 }
 
 WarpTargets warpTargets(const at::Tensor& motion) {

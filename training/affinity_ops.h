@@ -10,7 +10,6 @@ namespace affinity::train {
 struct PreparedInputs {
     at::Tensor networkInput;  // [B, S, 18, H, W]
     at::Tensor radiance;      // [B, 3, H, W]: mean over samples of the sanitised radiance
-    at::Tensor meanSquares;   // [B, 1, H, W]: mean over samples of their sanitised luminance squared
     at::Tensor invalidCount;  // [B] int64: radiance values that were non-finite or negative
     at::Tensor exposure;      // [B]: the exposure the radiance was scaled by (0: black, scaled by 1)
 };
@@ -18,9 +17,6 @@ struct PreparedInputs {
 // exposure normalisation too unless `exposure` ([B], a sequence's) is given; where that is 0 (the
 // sequence's frames so far black) it is computed from this frame.
 PreparedInputs prepareInputs(const at::Tensor& samples, const at::Tensor& exposure = at::Tensor());
-// The U-Net's noise inputs (core/src/network/noise_inputs.h) [B, 2, H, W] from prepareInputs'
-// radiance and meanSquares at `spp` samples per pixel and the exposure it used ([B], 0 = 1).
-at::Tensor noiseInputs(const PreparedInputs& prepared, std::int64_t spp, int saturationSpp);
 // The core's exposureOf (core/src/pipeline/exposure.h) per batch element of sanitised radiance
 // [B, S, 6, H, W] (diffuse then specular, non-finite and negative values already 0): [B] in double.
 at::Tensor exposureOf(const at::Tensor& cleanRadiance);

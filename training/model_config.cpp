@@ -5,7 +5,6 @@
 
 #include "affinity/error.h"
 #include "affinity/features.h"
-#include "affinity/frame.h"
 #include "affinity/weights.h"
 
 namespace affinity::train {
@@ -85,10 +84,6 @@ void validateConfig(const ModelConfig& config) {
     if (config.kernelSize < 1 || config.kernelSize > 63 || config.kernelSize % 2 == 0) {
         throw Error("model config: kernel size " + str(config.kernelSize) + " is not an odd number in 1..63");
     }
-    if (config.noiseInputsSpp < 0 || config.noiseInputsSpp > SampleFrame::kMaxSpp) {
-        throw Error("model config: noise inputs' saturation " + str(config.noiseInputsSpp) + " is outside 0.." +
-                    str(SampleFrame::kMaxSpp));
-    }
 }
 
 std::vector<std::string> presetNames() { return {"tiny", "small", "medium", "paper"}; }
@@ -139,7 +134,7 @@ std::vector<TensorSpec> parameterSpecs(const ModelConfig& config) {
     }
     const int levels = int(config.encoder.size());
     std::vector<int> skipWidths;
-    in = config.unetInputChannels();
+    in = 2 * config.embeddingChannels();
     for (int l = 0; l < levels; ++l) {
         in = addStack(specs, "unet.enc" + str(l), config.encoder[std::size_t(l)], in);
         skipWidths.push_back(in);
@@ -178,8 +173,6 @@ ModelConfig configFromWeights(const Weights& weights) {
         return value == 1;
     };
     config.lightRestoration = flag("config.light_restoration");
-    if (weights.has("config.noise_inputs_spp"))
-        config.noiseInputsSpp = readConfigInt(weights, "config.noise_inputs_spp");
     // Switches of variants that lost and were removed (docs/TRAINING.md, "Tried and lost"): a file
     // that turns one on is refused rather than trained or exported as a different model.
     for (const auto& [name, what] : {std::pair<const char*, const char*>{"config.source_weights", "source weights"},

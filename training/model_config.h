@@ -29,16 +29,10 @@ struct ModelConfig {
     // Not part of the network: whether the core restores light after the kernels (docs/MODEL.md
     // section 10). Kept from the weights a training starts from, written back on export.
     bool lightRestoration = false;
-    // The U-Net's two noise inputs (docs/MODEL.md section 4, core/src/network/noise_inputs.h): 0
-    // none, else the sample count at which their count channel saturates.
-    int noiseInputsSpp = 0;
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
     // Channels the moving average accumulates and the kernels filter: RGB radiance.
     static constexpr int kSignalChannels = 3;
-    static constexpr int kNoiseInputChannels = 2;
-    // The U-Net's input: concat(e_t, warped history[, noise inputs]).
-    int unetInputChannels() const { return 2 * embeddingChannels() + (noiseInputsSpp > 0 ? kNoiseInputChannels : 0); }
     // Head channels per kernel: features, bandwidth, centre weight.
     int kernelChannels() const { return affinityFeatures + 2; }
     // P = K kernelChannels() + 2: the kernels' parameters; temporal bandwidth, lambda.

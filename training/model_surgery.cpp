@@ -195,34 +195,4 @@ std::vector<NamedTensor> withLightRestoration(const Weights& trained, bool on) {
     return tensors;
 }
 
-std::vector<NamedTensor> withNoiseInputs(const Weights& trained, int saturationSpp) {
-    const ModelConfig before = configFromWeights(trained);
-    if (before.noiseInputsSpp > 0)
-        throw Error("noise-inputs: " + trained.source() + " already has noise inputs (saturating at " +
-                    std::to_string(before.noiseInputsSpp) + " samples)");
-    ModelConfig after = before;
-    after.noiseInputsSpp = saturationSpp;
-    if (saturationSpp < 1)
-        throw Error("noise-inputs: the saturation must be at least 1 sample, not " + std::to_string(saturationSpp));
-    validateConfig(after);
-    std::vector<NamedTensor> tensors = copiesOf(trained);
-    NamedTensor& first = tensorNamed(tensors, "unet.enc0.conv0.weight", "noise-inputs: " + trained.source());
-    // [out, in, 3, 3] -> [out, in + 2, 3, 3]: each output's weights on the new channels are 0.
-    const std::size_t in = std::size_t(first.shape[1]), taps = std::size_t(first.shape[2] * first.shape[3]);
-    const std::size_t out = std::size_t(first.shape[0]), grownIn = std::size_t(after.unetInputChannels());
-    std::vector<float> grown(out * grownIn * taps, 0.0f);
-    for (std::size_t o = 0; o < out; ++o)
-        std::copy_n(first.floats.begin() + std::ptrdiff_t(o * in * taps), in * taps,
-                    grown.begin() + std::ptrdiff_t(o * grownIn * taps));
-    first.floats = std::move(grown);
-    first.shape[1] = std::int64_t(grownIn);
-    NamedTensor saturation;
-    saturation.name = "config.noise_inputs_spp";
-    saturation.dtype = DType::Int32;
-    saturation.shape = {1};
-    saturation.ints = {saturationSpp};
-    tensors.push_back(std::move(saturation));
-    return tensors;
-}
-
 }  // namespace affinity::train

@@ -31,10 +31,4 @@ std::vector<NamedTensor> withKernelAdded(const Weights& trained, double bandwidt
 // the switch is a property of the file, not a change of the network.
 std::vector<NamedTensor> withLightRestoration(const Weights& trained, bool on);
 
-// The trained model with the U-Net's two noise inputs added (docs/MODEL.md section 4), their
-// count channel saturating at `saturationSpp` samples: the first convolution's weights on them
-// are 0, so the function is the trained one's until training moves them. Throws affinity::Error
-// for a saturation below 1 or above the most samples a frame may hold, or a model that has them.
-std::vector<NamedTensor> withNoiseInputs(const Weights& trained, int saturationSpp);
-
 }  // namespace affinity::train

@@ -6,8 +6,6 @@
 //   affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw
 //   affinity_model_tool add-kernel [--bandwidth-scale S] IN.affw OUT.affw
 //   affinity_model_tool light-restoration on|off IN.affw OUT.affw
-//   affinity_model_tool noise-inputs SPP IN.affw OUT.affw
-#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -31,9 +29,7 @@ constexpr const char* kUsage =
     "       affinity_model_tool add-kernel [--bandwidth-scale S] IN.affw OUT.affw   (one more dilated kernel,\n"
     "           the last and widest; it starts as a copy of the old last one, bandwidth x S, default 2)\n"
     "       affinity_model_tool light-restoration on|off IN.affw OUT.affw   (whether denoising restores the\n"
-    "           input's light after the kernels, docs/MODEL.md section 10; the weights unchanged)\n"
-    "       affinity_model_tool noise-inputs SPP IN.affw OUT.affw   (the U-Net's two noise inputs added with\n"
-    "           zero weights, the sample count read saturating at SPP; docs/MODEL.md section 4)\n";
+    "           input's light after the kernels, docs/MODEL.md section 10; the weights unchanged)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -95,10 +91,6 @@ int runDescribe(const std::vector<std::string>& args) {
     std::cout << "  kernels        K = " << config.kernels << ", F = " << config.affinityFeatures
               << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
     std::cout << "  light restoration " << (config.lightRestoration ? "on" : "off") << "\n";
-    std::cout << "  noise inputs   "
-              << (config.noiseInputsSpp > 0 ? "on, count saturating at " + std::to_string(config.noiseInputsSpp)
-                                            : std::string("off"))
-              << "\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];
@@ -185,17 +177,6 @@ int runLightRestoration(const std::vector<std::string>& args) {
     return 0;
 }
 
-int runNoiseInputs(const std::vector<std::string>& args) {
-    if (args.size() != 3) throw Error("noise-inputs: expected SPP IN.affw OUT.affw");
-    if (args[1] == args[2]) throw Error("noise-inputs: the output must not overwrite the input");
-    // Past the limit stays past it (withNoiseInputs names the range) without overflowing an int.
-    const int spp = int(std::min<std::uint64_t>(nonNegativeInteger("noise-inputs: SPP", args[0]), 1u << 20));
-    writeWeightsFile(args[2], withNoiseInputs(Weights::fromFile(args[1]), spp));
-    std::cout << "wrote " << args[2] << ": " << args[1] << " with noise inputs (count saturating at " << spp
-              << " samples)\n";
-    return 0;
-}
-
 }  // namespace
 }  // namespace affinity::train
 
@@ -212,7 +193,6 @@ int main(int argc, char** argv) {
         if (args[0] == "widen") return affinity::train::runWiden(rest);
         if (args[0] == "add-kernel") return affinity::train::runAddKernel(rest);
         if (args[0] == "light-restoration") return affinity::train::runLightRestoration(rest);
-        if (args[0] == "noise-inputs") return affinity::train::runNoiseInputs(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

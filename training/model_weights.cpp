@@ -27,7 +27,6 @@ std::vector<NamedTensor> modelTensors(const AffinityModel& model) {
     integer("config.affinity_features", config.affinityFeatures);
     integer("config.kernel_size", config.kernelSize);
     if (config.lightRestoration) integer("config.light_restoration", 1);
-    if (config.noiseInputsSpp > 0) integer("config.noise_inputs_spp", config.noiseInputsSpp);
     return tensors;
 }
 

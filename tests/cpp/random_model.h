@@ -17,7 +17,6 @@ struct ModelShape {
     std::vector<int> encoder{8, 12};    // one conv per level
     int bottleneck = 16;
     int kernels = 3, affinityFeatures = 4, tapSize = 5;
-    int noiseInputsSpp = 0;  // > 0: the U-Net's two noise inputs, saturating there
 };
 
 inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shape, unsigned seed,
@@ -47,10 +46,6 @@ inline std::vector<train::NamedTensor> randomModelTensors(const ModelShape& shap
         in = shape.embedding[i];
     }
     in *= 2;
-    if (shape.noiseInputsSpp > 0) {
-        config("config.noise_inputs_spp", shape.noiseInputsSpp);
-        in += 2;
-    }
     std::vector<int> skips;
     for (std::size_t l = 0; l < shape.encoder.size(); ++l) {
         const std::string p = "unet.enc" + std::to_string(l) + ".conv0";

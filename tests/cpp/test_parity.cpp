@@ -107,40 +107,6 @@ TEST(Parity, DarkAlbedoAndNonFiniteFeatures) {
     }
 }
 
-// The U-Net's noise inputs: the count saturating below the frames' 3 samples (2) and above (8).
-TEST(Parity, NoiseInputs) {
-    for (int saturation : {2, 8}) {
-        const std::string path = temporaryPath("noise" + std::to_string(saturation) + ".affw");
-        test::ModelShape shape;
-        shape.noiseInputsSpp = saturation;
-        train::writeWeightsFile(path, test::randomModelTensors(shape, 11));
-        expectParity(path, test::randomSequence(4, 23, 17, 3, 11));
-        std::filesystem::remove(path);
-    }
-}
-
-// Noise inputs added to the shipped default with zero weights leave what it computes, and both
-// sides agree on the grown model.
-TEST(Parity, AddingNoiseInputsKeepsTheFunction) {
-    const std::string original = std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw";
-    const std::string grown = temporaryPath("default_noise.affw");
-    const Weights trained = Weights::fromFile(original);
-    train::writeWeightsFile(grown, train::withNoiseInputs(trained, 8));
-    const Weights withNoise = Weights::fromFile(grown);
-    EXPECT_EQ(withNoise.integer("config.noise_inputs_spp"), 8);
-    EXPECT_EQ(withNoise.tensor("unet.enc0.conv0.weight").shape[1],
-              trained.tensor("unet.enc0.conv0.weight").shape[1] + 2);
-    const std::vector<SampleFrame> frames = test::randomSequence(3, 37, 29, 4, 23);
-    Denoiser before = test::networkDenoiser(original), after = test::networkDenoiser(grown);
-    for (std::size_t t = 0; t < frames.size(); ++t)
-        EXPECT_LT(maxRelativeDifference(after.denoise(frames[t]), before.denoise(frames[t])), 1e-5) << "frame " << t;
-    expectParity(grown, frames);
-    EXPECT_THROW(train::withNoiseInputs(withNoise, 8), Error);  // it has them already
-    EXPECT_THROW(train::withNoiseInputs(trained, 0), Error);
-    EXPECT_THROW(train::withNoiseInputs(trained, 65), Error);
-    std::filesystem::remove(grown);
-}
-
 // The shipped default grown to the medium preset's widths computes what it did (up to the
 // convolutions' summation order, which the wider layers change), and both sides still agree.
 TEST(Parity, WideningATrainedModelKeepsTheFunction) {

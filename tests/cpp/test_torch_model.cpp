@@ -153,21 +153,6 @@ TEST(TorchModel, SmallPresetHasTheDocumentedTensorNames) {
     EXPECT_EQ(parameter(model, "unet.head.weight").sizes().vec(), (std::vector<std::int64_t>{32, 24, 1, 1}));
 }
 
-TEST(TorchModel, NoiseInputsWidenTheFirstLayerAndSurviveExport) {
-    ModelConfig config = presetConfig("small");
-    config.noiseInputsSpp = 8;
-    AffinityModel model = makeModel(config, 1);
-    EXPECT_EQ(parameter(model, "unet.enc0.conv0.weight").sizes().vec(), (std::vector<std::int64_t>{24, 66, 3, 3}));
-    const std::string path = tempPath("noise_export.affw");
-    exportWeights(model, path);
-    const Weights weights = Weights::fromFile(path);
-    EXPECT_EQ(weights.integer("config.noise_inputs_spp"), 8);
-    EXPECT_EQ(configFromWeights(weights).noiseInputsSpp, 8);
-    config.noiseInputsSpp = 65;
-    EXPECT_THROW(validateConfig(config), Error);
-    std::filesystem::remove(path);
-}
-
 TEST(TorchModel, InitialisationIsDeterministicPerSeed) {
     const ModelConfig config = presetConfig("tiny");
     AffinityModel a = makeModel(config, 42), b = makeModel(config, 42), c = makeModel(config, 43);

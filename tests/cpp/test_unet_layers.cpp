@@ -199,37 +199,6 @@ TEST(Conv2d, TwoInputsEqualExplicitConcat) {
                 }
 }
 
-// The U-Net's first layer with noise inputs: embedding, history and two noise channels.
-TEST(Conv2d, ThreeInputsEqualExplicitConcat) {
-    std::mt19937 rng(6);
-    const int splits[][3] = {{16, 16, 2}, {32, 32, 2}, {3, 5, 2}, {8, 0, 1}};
-    for (const Size size : kSizes)
-        for (const auto& split : splits)
-            for (const ConvForm form : {ConvForm::Direct, ConvForm::Winograd}) {
-                SCOPED_TRACE(std::to_string(size.height) + "x" + std::to_string(size.width) + " split " +
-                             std::to_string(split[0]) + "+" + std::to_string(split[1]) + "+" +
-                             std::to_string(split[2]) + (form == ConvForm::Winograd ? " winograd" : " direct"));
-                const FeatureMap first = randomMap(size.height, size.width, split[0], rng);
-                const FeatureMap second = randomMap(size.height, size.width, split[1], rng);
-                const FeatureMap third = randomMap(size.height, size.width, split[2], rng);
-                const ConvWeights w = randomConv(24, split[0] + split[1] + split[2], 3, rng);
-                const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size, defaultConvIsa(), 0, form);
-                FeatureMap viaThree, viaConcat;
-                conv.apply(first, second, third, Activation::LeakyRelu, viaThree);
-                conv.apply(concat(concat(first, second), third), Activation::LeakyRelu, viaConcat);
-                ASSERT_TRUE(bitwiseEqual(viaThree, viaConcat));
-            }
-    std::mt19937 rng2(7);
-    const FeatureMap a = randomMap(4, 5, 2, rng2), b = randomMap(4, 5, 2, rng2), c = randomMap(4, 6, 2, rng2),
-                     d = randomMap(4, 5, 3, rng2);
-    const ConvWeights w = randomConv(3, 6, 3, rng2);
-    const Conv2d conv(w.weight.data(), w.bias.data(), w.out, w.in, w.size);
-    FeatureMap out(4, 5, 2);
-    EXPECT_THROW(conv.apply(a, b, c, Activation::LeakyRelu, out), Error);  // sizes differ
-    EXPECT_THROW(conv.apply(a, b, d, Activation::None, out), Error);       // 7 channels, the layer reads 6
-    EXPECT_THROW(conv.apply(a, b, out, Activation::None, out), Error);     // the output is an input
-}
-
 TEST(Conv2d, UpsampledInputEqualsExplicitUpsampling) {
     std::mt19937 rng(13);
     const int splits[][2] = {{1, 1}, {3, 5}, {32, 24}, {13, 35}};

@@ -3,9 +3,7 @@
 #include <set>
 
 #include "affinity/error.h"
-#include "affinity/frame.h"
 #include "affinity/weights.h"
-#include "network/noise_inputs.h"
 
 namespace affinity {
 namespace {
@@ -136,8 +134,6 @@ Network buildNetwork(const Weights& weights, Precision precision) {
     n.tapSize = b.config("config.kernel_size", 1, 15);
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
     n.lightRestoration = b.flag("config.light_restoration");
-    if (weights.has("config.noise_inputs_spp"))
-        n.noiseInputsSpp = b.config("config.noise_inputs_spp", 0, SampleFrame::kMaxSpp);
     b.removedFlag("config.source_weights", "source weights");
     b.removedFlag("config.emission_lambda", "a separate emission lambda");
     b.removedFlag("config.albedo_demodulation", "albedo demodulation");
@@ -149,8 +145,7 @@ Network buildNetwork(const Weights& weights, Precision precision) {
     n.embedding.emplace(std::move(dense), precision);
     const int embeddingChannels = n.embedding->outChannels();
 
-    // concat(e_t, warped history[, noise inputs])
-    int channels = 2 * embeddingChannels + (n.noiseInputsSpp > 0 ? kNoiseInputChannels : 0);
+    int channels = 2 * embeddingChannels;  // concat(e_t, warped history)
     std::vector<int> skipChannels;
     for (int level = 0; weights.has("unet.enc" + std::to_string(level) + ".conv0.weight"); ++level) {
         n.encoder.push_back(b.block("unet.enc" + std::to_string(level), channels));

@@ -25,9 +25,6 @@ struct Network {
     // Whether the Denoiser restores light after the kernels (config.light_restoration, docs/MODEL.md
     // sections 8 and 10): a property of the trained weights, set where it was measured to help.
     bool lightRestoration = false;
-    // The U-Net's two noise inputs (config.noise_inputs_spp, network/noise_inputs.h): 0 none, else
-    // the sample count at which their count channel saturates.
-    int noiseInputsSpp = 0;
     std::int64_t parameterCount = 0;
     Precision precision = Precision::Float32;  // of the products (affinity/precision.h), never Auto
 

@@ -82,39 +82,18 @@ void Conv2d::apply(const FeatureMap& input, Activation activation, FeatureMap& o
 }
 
 void Conv2d::apply(const FeatureMap& first, const FeatureMap& second, Activation activation, FeatureMap& output) const {
-    const FeatureMap* inputs[2] = {&first, &second};
-    applyConcatenation(inputs, 2, activation, output);
-}
-
-void Conv2d::apply(const FeatureMap& first, const FeatureMap& second, const FeatureMap& third, Activation activation,
-                   FeatureMap& output) const {
-    const FeatureMap* inputs[3] = {&first, &second, &third};
-    applyConcatenation(inputs, 3, activation, output);
-}
-
-void Conv2d::applyConcatenation(const FeatureMap* const* inputs, int count, Activation activation,
-                                FeatureMap& output) const {
-    const FeatureMap& first = *inputs[0];
-    std::string shapes;
-    int channels = 0;
-    for (int i = 0; i < count; ++i) {
-        shapes += (i ? " and " : "") + shapeText(*inputs[i]);
-        channels += inputs[i]->channels();
-    }
-    for (int i = 1; i < count; ++i)
-        if (inputs[i]->height() != first.height() || inputs[i]->width() != first.width())
-            throw Error("Conv2d: concatenated inputs differ in size: " + shapes);
-    if (channels != inChannels())
-        throw Error("Conv2d: concatenated inputs " + shapes + " have " + std::to_string(channels) +
-                    " channels, the layer expects " + std::to_string(inChannels()));
-    ConvSource sources[3];
-    int used = 0;
-    for (int i = 0; i < count; ++i) {
-        if (inputs[i] == &output) throw Error("Conv2d: the output must not be an input");
-        // A source without channels contributes nothing; skipping it keeps the kernel's loops simple.
-        if (inputs[i]->channels() > 0) sources[used++] = {inputs[i]->data(), inputs[i]->channels()};
-    }
-    run(sources, used, first.height(), first.width(), activation, output);
+    if (first.height() != second.height() || first.width() != second.width())
+        throw Error("Conv2d: concatenated inputs differ in size: " + shapeText(first) + " and " + shapeText(second));
+    if (first.channels() + second.channels() != inChannels())
+        throw Error("Conv2d: concatenated inputs " + shapeText(first) + " and " + shapeText(second) + " have " +
+                    std::to_string(first.channels() + second.channels()) + " channels, the layer expects " +
+                    std::to_string(inChannels()));
+    if (&first == &output || &second == &output) throw Error("Conv2d: the output must not be an input");
+    const ConvSource sources[2] = {{first.data(), first.channels()}, {second.data(), second.channels()}};
+    // A source without channels contributes nothing; skipping it keeps the kernel's loops simple.
+    const int offset = first.channels() == 0 ? 1 : 0;
+    const int count = 2 - offset - (second.channels() == 0 ? 1 : 0);
+    run(sources + offset, count, first.height(), first.width(), activation, output);
 }
 
 void Conv2d::applyUpsampled(const FeatureMap& coarse, const FeatureMap& skip, Activation activation,

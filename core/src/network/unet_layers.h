@@ -49,9 +49,6 @@ public:
     // decoder does with its skip connections, without materialising the concatenation.
     // Bitwise equal to apply() on the explicit concatenation (in either form).
     void apply(const FeatureMap& first, const FeatureMap& second, Activation activation, FeatureMap& output) const;
-    // The same on the concatenation of three inputs (the U-Net's first layer with noise inputs).
-    void apply(const FeatureMap& first, const FeatureMap& second, const FeatureMap& third, Activation activation,
-               FeatureMap& output) const;
     // The same on concat(upsampleNearest(coarse), skip), output the skip's size, without
     // materialising the upsampled map; coarse must be exactly ceil(h / 2) x ceil(w / 2).
     // Bitwise equal to upsampleNearest followed by the two-input apply(), unless the layer was
@@ -73,9 +70,6 @@ public:
                        Activation activation, float* const* rows) const;
 
 private:
-    // apply() on the concatenation of `count` (at most 3) inputs.
-    void applyConcatenation(const FeatureMap* const* inputs, int count, Activation activation,
-                            FeatureMap& output) const;
     void run(const ConvSource* sources, int sourceCount, int height, int width, Activation activation,
              FeatureMap& output) const;
     // Whether the folded form applies to these sources.

@@ -12,7 +12,6 @@
 #include "affinity/error.h"
 #include "network/filter_signal.h"
 #include "network/network.h"
-#include "network/noise_inputs.h"
 #include "pipeline/ablation.h"
 #include "pipeline/feature_map_pool.h"
 #include "pipeline/frame_input.h"
@@ -207,13 +206,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     clock.mark("warp history");
     interrupted();
     // 4. U-Net.
-    FeatureMap noise;
-    if (net.noiseInputsSpp > 0) {
-        noise = pool.take(height, width, kNoiseInputChannels);
-        makeNoiseInputs(frame.signal, frame.meanSquares, frame.spp, net.noiseInputsSpp, frame.exposure, noise);
-    }
-    UnetTail tail = stages.unet(frame.embedding, accumulated.embedding, net.noiseInputsSpp > 0 ? &noise : nullptr);
-    pool.give(noise);
+    UnetTail tail = stages.unet(frame.embedding, accumulated.embedding);
     clock.mark("u-net");
     // 5-7. Kernel parameters, accumulation and kernels, band by band.
     const KernelChoice kernels{useHistory && ablation.temporalKernel, ablation.allKernels};

@@ -110,7 +110,7 @@ void Stages::runBlock(const std::vector<Conv2d>& block, std::size_t first, std::
     }
 }
 
-UnetTail Stages::unet(const FeatureMap& embedding, const FeatureMap& historyEmbedding, const FeatureMap* noise) {
+UnetTail Stages::unet(const FeatureMap& embedding, const FeatureMap& historyEmbedding) {
     const Network& net = net_;
     const std::size_t levels = net.encoder.size();
     std::vector<FeatureMap> encoderOut(levels);  // the skip connections
@@ -120,10 +120,7 @@ UnetTail Stages::unet(const FeatureMap& embedding, const FeatureMap& historyEmbe
         FeatureMap& out = encoderOut[level];
         if (level == 0) {
             out = pool_.take(embedding.height(), embedding.width(), block[0].outChannels());
-            if (noise)
-                block[0].apply(embedding, historyEmbedding, *noise, Activation::LeakyRelu, out);
-            else
-                block[0].apply(embedding, historyEmbedding, Activation::LeakyRelu, out);
+            block[0].apply(embedding, historyEmbedding, Activation::LeakyRelu, out);
         } else {
             const FeatureMap& above = encoderOut[level - 1];
             FeatureMap pooled = pool_.take((above.height() + 1) / 2, (above.width() + 1) / 2, above.channels());

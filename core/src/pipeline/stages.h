@@ -85,9 +85,8 @@ public:
     Accumulated warpHistory(const FeatureMap& embedding, const FeatureMap& signal, SequenceHistory& sequence,
                             bool history, const float* motion, const float* valid);
     // 4. The U-Net up to the input of its last full-resolution convolution, which filterInBands()
-    // fuses with the head. `noise`: the network's noise inputs (network/noise_inputs.h), null when
-    // it has none.
-    UnetTail unet(const FeatureMap& embedding, const FeatureMap& historyEmbedding, const FeatureMap* noise);
+    // fuses with the head.
+    UnetTail unet(const FeatureMap& embedding, const FeatureMap& historyEmbedding);
     // 5-7. Band by band down the image: kernel parameters, accumulation of `embedding` and
     // `signal` into `accumulated` with the learned lambda, and the affinity kernels, the temporal
     // one reading the sequence's last output and features, which this frame's then replace.
