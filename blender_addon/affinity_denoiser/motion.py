@@ -27,10 +27,6 @@ MISS_DEPTH = 1.0e9
 DEPTH_TOLERANCE = 0.02
 #: A previous pixel vouches for a reprojected point only if a bilinear fetch there weighs it more.
 MIN_FETCH_WEIGHT = 1e-3
-#: A previous pixel whose depth is off the expected by more than this fraction (beyond its own
-#: tolerance) saw another surface, in front or behind, and a fetch must not read it. Between
-#: DEPTH_TOLERANCE and this, the pixel may be the same surface past a crease.
-OTHER_SURFACE_DEPTH = 0.1
 
 
 class CameraError(RuntimeError):
@@ -198,27 +194,16 @@ def _seen_before(
     expected_depth: np.ndarray,
     miss: np.ndarray,
     previous: _PreviousDepth,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Whether the previous frame saw the surface at (px, py), and where to fetch it from.
+) -> np.ndarray:
+    """Whether the previous frame saw the surface at (px, py): one of the pixels that a bilinear
+    fetch at that point reads saw the expected planar depth (for the environment: saw it too).
 
-    Seen: one of the pixels that a bilinear fetch at that point reads saw the expected planar
-    depth (for the environment: saw it too). Only pixels with a weight in the fetch count: a
-    point landing on a pixel centre reads that pixel alone, and its right and lower neighbours
-    must not vouch for it.
-
-    Where the fetch would also read pixels that saw another surface (along a silhouette: the
-    object in front, or the one behind; OTHER_SURFACE_DEPTH), the point moves to the centre of the agreeing pixel
-    with the largest weight, so that the core's fetch reads that pixel alone: a history shifted
-    by less than a pixel, rather than one mixed with the other surface's light (a bright
-    lampshade's light blended into the history of the wall it uncovers stays there for frames).
-    Returns (seen, x, y), x and y the point to fetch from.
+    Only pixels with a weight in the fetch count: a point landing on a pixel centre reads that
+    pixel alone, and its right and lower neighbours must not vouch for it.
     """
     previous_depth, previous_miss, tolerance = previous.depth, previous.miss, previous.tolerance
     height, width = previous_depth.shape
     matches = np.zeros(px.shape, bool)
-    mixed = np.zeros(px.shape, bool)
-    best_weight = np.zeros(px.shape)
-    best_x, best_y = np.zeros(px.shape), np.zeros(py.shape)
     base_x = np.floor(px - 0.5)
     base_y = np.floor(py - 0.5)
     fraction_x, fraction_y = px - 0.5 - base_x, py - 0.5 - base_y
@@ -231,20 +216,9 @@ def _seen_before(
             seen_miss = previous_miss[sy, sx]
             same_depth = np.abs(seen - expected_depth) <= np.maximum(
                 DEPTH_TOLERANCE * np.abs(expected_depth), tolerance[sy, sx])
-            weight = weight_x * weight_y
-            read = weight > MIN_FETCH_WEIGHT
-            agrees = np.where(miss, seen_miss, ~seen_miss & same_depth)
-            other_surface = np.where(miss, ~seen_miss, seen_miss | (
-                np.abs(seen - expected_depth)
-                > OTHER_SURFACE_DEPTH * np.abs(expected_depth) + tolerance[sy, sx]))
-            matches |= read & agrees
-            mixed |= read & other_surface
-            better = read & agrees & (weight > best_weight)
-            best_weight = np.where(better, weight, best_weight)
-            best_x = np.where(better, sx + 0.5, best_x)
-            best_y = np.where(better, sy + 0.5, best_y)
-    moved = matches & mixed
-    return matches, np.where(moved, best_x, px), np.where(moved, best_y, py)
+            read = weight_x * weight_y > MIN_FETCH_WEIGHT
+            matches |= read & np.where(miss, seen_miss, ~seen_miss & same_depth)
+    return matches
 
 
 def camera_motion(
@@ -259,9 +233,8 @@ def camera_motion(
     ``depth`` is Cycles' planar Z pass of this frame (top row first), ``previous_depth`` that of
     the previous frame. A pixel is valid when its surface lands on screen, in front of the
     previous camera, and a previous pixel that a bilinear fetch at the landing point reads saw
-    the same depth (or, for the environment, saw the environment too); along a silhouette the
-    motion points at that pixel's centre (``_seen_before``). The first frame has zero motion and
-    no valid pixel.
+    the same depth (or, for the environment, saw the environment too). The first frame has zero
+    motion and no valid pixel.
     """
     return _camera_motion(camera, depth, previous_camera,
                           None if previous_depth is None else _PreviousDepth.of(previous_depth))
@@ -281,17 +254,16 @@ def _camera_motion(
 
     points = world_points(camera, depth)
     px, py, expected_depth = project(previous_camera, points)
+    xs = np.arange(camera.width) + 0.5
+    ys = np.arange(camera.height) + 0.5
+    motion = np.stack([px - xs[None, :], py - ys[:, None]], axis=-1)
+
     miss = points[..., 3] == 0.0
     in_front = (points @ previous_camera.world_to_camera.T)[..., 2] < 0.0
     if previous_camera.orthographic:
         in_front = in_front | miss
     on_screen = (px >= 0) & (px < camera.width) & (py >= 0) & (py < camera.height)
-    seen, fetch_x, fetch_y = _seen_before(px, py, expected_depth, miss, previous)
-    valid = on_screen & in_front & seen
-    px, py = np.where(valid, fetch_x, px), np.where(valid, fetch_y, py)
-    xs = np.arange(camera.width) + 0.5
-    ys = np.arange(camera.height) + 0.5
-    motion = np.stack([px - xs[None, :], py - ys[:, None]], axis=-1)
+    valid = on_screen & in_front & _seen_before(px, py, expected_depth, miss, previous)
     motion[~np.isfinite(motion)] = 0.0
     return motion.astype(np.float32), valid.astype(np.float32)
 
@@ -475,18 +447,13 @@ def scene_motion(current: FrameGeometry,
     there = _transform(_object_to_camera(previous.camera, previous_matrices), keys, local)
     x_now, y_now = _camera_to_pixels(current.camera, here)
     x_before, y_before = _camera_to_pixels(previous.camera, there)
-    # Where the core will fetch: the pixel's centre plus the point's motion (the sample's point
-    # lies anywhere in the pixel, and with motion blur outside it).
-    x_fetch = cols + 0.5 + (x_before - x_now)
-    y_fetch = rows + 0.5 + (y_before - y_now)
+    object_motion = np.stack([x_before - x_now, y_before - y_now], axis=-1)
+    expected_depth = -there[:, 2]
     width, height = current.camera.width, current.camera.height
-    visible = ((x_fetch >= 0) & (x_fetch < width) & (y_fetch >= 0) & (y_fetch < height)
-               & (there[:, 2] < 0.0))
-    seen, x_seen, y_seen = _seen_before(x_fetch, y_fetch, -there[:, 2],
-                                        np.zeros(len(keys), bool), previous_depth)
-    visible &= seen
-    x_fetch, y_fetch = np.where(visible, x_seen, x_fetch), np.where(visible, y_seen, y_fetch)
-    object_motion = np.stack([x_fetch - (cols + 0.5), y_fetch - (rows + 0.5)], axis=-1)
+    visible = ((x_before >= 0) & (x_before < width) & (y_before >= 0) & (y_before < height)
+               & (there[:, 2] < 0.0) & np.isfinite(object_motion).all(axis=-1)
+               & _seen_before(x_before, y_before, expected_depth,
+                              np.zeros(len(keys), bool), previous_depth))
     object_motion[~np.isfinite(object_motion)] = 0.0
     motion[rows, cols] = object_motion
     valid[rows, cols] = visible

@@ -105,25 +105,6 @@ def capture(scene: Any, setup: Callable[[Any], None] | None = None) -> dict[str,
     return captured[0]
 
 
-def silhouette_fetches(motion_field: np.ndarray, expected: np.ndarray, pixels: np.ndarray,
-                       tolerance_px: float) -> np.ndarray:
-    """Checks that the motion of ``pixels`` (a mask) is ``expected`` within ``tolerance_px``
-    except where the extension moved a fetch off another surface: there it differs by less than
-    a pixel and lands on a pixel centre (pixel index + motion an integer, the core's convention).
-    Returns those moved pixels' (row, column, row landed on, column landed on)."""
-    ours = motion_field[pixels]
-    moved = np.abs(ours - expected[pixels]).max(axis=-1) >= tolerance_px
-    rows, cols = np.nonzero(pixels)
-    if moved.any():
-        assert np.abs(ours - expected[pixels])[moved].max() < 1.0
-    landing_x = cols[moved] + ours[moved, 0]
-    landing_y = rows[moved] + ours[moved, 1]
-    np.testing.assert_allclose(landing_x, np.round(landing_x), atol=1e-4)
-    np.testing.assert_allclose(landing_y, np.round(landing_y), atol=1e-4)
-    return np.stack([rows[moved], cols[moved], np.round(landing_y).astype(int),
-                     np.round(landing_x).astype(int)], axis=-1)
-
-
 def material_snapshot() -> dict[str, Any]:
     """Everything about every material's node tree that a user could see."""
 

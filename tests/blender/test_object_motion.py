@@ -12,7 +12,7 @@ from typing import Any
 import bpy
 import numpy as np
 import pytest
-from conftest import capture, material_snapshot, silhouette_fetches
+from conftest import capture, material_snapshot
 
 from affinity_denoiser import materials, motion, passes, pipeline
 
@@ -187,34 +187,6 @@ def _analytic_motion(frames: dict[int, dict[str, Any]], frame: int) -> np.ndarra
     return np.stack([x_before - x, y_before - y], -1).reshape(HEIGHT, WIDTH, 2)
 
 
-def _assert_follows(motion_field: np.ndarray, expected: np.ndarray, pixels: np.ndarray,
-                    index_now: np.ndarray, index_before: np.ndarray, at_silhouettes: float = 0.9) -> None:
-    """The motion of ``pixels`` is ``expected`` (within TOLERANCE_PX) except along silhouettes,
-    where the previous pixels a fetch at ``expected`` would read saw different surfaces: there
-    it points, less than a pixel away, at the centre of a previous pixel that saw the same object
-    (Object Index passes ``index_now`` and ``index_before``). Pixels that moved although their
-    fetch read one object (a depth step within it) are at most 1 - ``at_silhouettes`` of them."""
-    moved = silhouette_fetches(motion_field, expected, pixels, TOLERANCE_PX)
-    if len(moved) == 0:
-        return
-    rows, cols, landed_rows, landed_cols = moved.T
-    assert (index_before[landed_rows, landed_cols] == index_now[rows, cols]).mean() > 0.9
-    # It moved where a bilinear fetch at the expected point reads another object too.
-    at_x, at_y = cols + expected[rows, cols, 0], rows + expected[rows, cols, 1]
-    height, width = index_before.shape
-    footprint = [index_before[np.clip(np.floor(at_y).astype(int) + dy, 0, height - 1),
-                              np.clip(np.floor(at_x).astype(int) + dx, 0, width - 1)]
-                 for dy in (0, 1) for dx in (0, 1)]
-    mixed = np.any([seen != index_now[rows, cols] for seen in footprint], axis=0)
-    assert mixed.mean() > at_silhouettes
-
-
-def _check_follows(frames: dict[int, dict[str, Any]], frame: int, expected: np.ndarray,
-                   pixels: np.ndarray) -> None:
-    now, before = frames[frame], frames[frame - 1]
-    _assert_follows(now["motion"], expected, pixels, now["index"], before["index"])
-
-
 def _check_moving_objects(frames: dict[int, dict[str, Any]]) -> None:
     for frame in (2, 3):
         now = frames[frame]
@@ -222,8 +194,9 @@ def _check_moving_objects(frames: dict[int, dict[str, Any]]) -> None:
         for index in (MOVER, SPINNER, CHILD):
             on = now["index"] == index
             assert on.sum() > 20, f"object {index} covers too few pixels"
-            _check_follows(frames, frame, analytic, on)
-            _check_follows(frames, frame, now["vector"], on)
+            ours = now["motion"][on]
+            assert np.abs(ours - analytic[on]).max() < TOLERANCE_PX
+            assert np.abs(ours - now["vector"][on]).max() < TOLERANCE_PX
             # Camera-only motion would be far off: the objects really move on screen.
             camera_only = np.linalg.norm(analytic[on] - _camera_only(frames, frame)[on], axis=-1)
             assert camera_only.mean() > 0.5
@@ -293,7 +266,7 @@ def test_a_moving_camera_with_moving_objects(moving_camera: dict[str, Any]) -> N
     for frame in (2, 3):
         now = moving_camera[frame]
         hit = now["hit"] & ((now["index"] != POPPER) | (frame != 2))  # new: no Cycles motion
-        _check_follows(moving_camera, frame, now["vector"], hit)
+        assert np.abs(now["motion"] - now["vector"])[hit].max() < TOLERANCE_PX
         floor = now["index"] == FLOOR
         assert np.linalg.norm(now["motion"][floor], axis=-1).mean() > 0.3  # the camera moves
 
@@ -368,11 +341,9 @@ def test_motion_blur_keeps_object_motion(tmp_path: Any) -> None:
     # -STEP * focal length (pixels) / z, whatever the shutter time it was hit at.
     camera = bpy.data.cameras["Camera"]
     focal_px = camera.lens / camera.sensor_width * WIDTH
-    expected = np.zeros_like(ours)
-    expected[mover, 0] = -STEP * focal_px / geometry[2].depth[mover]
-    # The depth of a blurred edge comes from one shutter time: more pixels look like a depth step.
-    _assert_follows(ours, expected, mover, _object_index(captured[2]), _object_index(captured[1]),
-                    at_silhouettes=0.75)
+    expected = -STEP * focal_px / geometry[2].depth[mover]
+    assert np.abs(ours[mover][:, 0] - expected).max() < TOLERANCE_PX
+    assert np.abs(ours[mover][:, 1]).max() < TOLERANCE_PX
     assert valid[mover].mean() > 0.8
 
 
@@ -488,44 +459,3 @@ def test_depth_slope_follows_a_ramp_and_ignores_edges() -> None:
     slope = motion.depth_slope(depth, miss)
     assert np.allclose(slope[~miss], 0.4)
     assert slope[0, 0] == 0.0
-
-
-def _bilinear_fetch(image: np.ndarray, motion_field: np.ndarray) -> np.ndarray:
-    """What the core's bilinear warp reads: pixel (x, y) fetches ``image`` at (x, y) + motion in
-    pixel-index coordinates, clamped to the image, from the four pixels around that point."""
-    height, width = image.shape
-    ys, xs = np.mgrid[0:height, 0:width].astype(np.float64)
-    at_x = np.clip(xs + motion_field[..., 0], 0, width - 1)
-    at_y = np.clip(ys + motion_field[..., 1], 0, height - 1)
-    x0, y0 = np.floor(at_x).astype(int), np.floor(at_y).astype(int)
-    fx, fy = at_x - x0, at_y - y0
-    x1, y1 = np.minimum(x0 + 1, width - 1), np.minimum(y0 + 1, height - 1)
-    return ((1 - fy) * ((1 - fx) * image[y0, x0] + fx * image[y0, x1])
-            + fy * ((1 - fx) * image[y1, x0] + fx * image[y1, x1]))
-
-
-@pytest.mark.parametrize("shift", [0.4, -0.4, 0.25])
-def test_history_along_a_silhouette_is_fetched_from_one_surface(shift: float) -> None:
-    """An orthographic camera slides ``shift`` pixels sideways past a near surface (depth 2, the
-    left half) in front of a far wall (depth 10). Wherever the history is valid, the core's
-    bilinear fetch at the motion reads the surface the pixel shows and nothing of the other one:
-    along the edge the motion moves (at most half a pixel); elsewhere it is exact."""
-    width, height, edge = 16, 4, 8
-    depth = np.where(np.arange(width)[None, :] < edge, 2.0, 10.0) * np.ones((height, 1))
-    current = motion.Camera(np.eye(4), np.eye(4), width, height, True, 0.0)
-    world_to_previous = np.eye(4)
-    world_to_previous[0, 3] = 2.0 * shift / width  # the previous camera sat -shift pixels away
-    previous = motion.Camera(world_to_previous, np.eye(4), width, height, True, 0.0)
-    flow, valid = motion.camera_motion(current, depth, previous, depth)
-
-    on_screen = (np.arange(width) + 0.5 + shift < width) & (np.arange(width) + 0.5 + shift >= 0)
-    np.testing.assert_array_equal(valid, np.broadcast_to(on_screen, valid.shape).astype(np.float32))
-    fetched = _bilinear_fetch(depth, flow)
-    np.testing.assert_allclose(fetched[valid > 0], depth[valid > 0], rtol=1e-6)
-    # The pixel whose landing point straddles the edge: the near one for a positive shift.
-    straddling = edge - 1 if shift > 0 else edge
-    assert np.abs(flow[:, straddling, 0] - shift).max() <= 0.5
-    assert np.abs(flow[:, straddling, 0] - shift).min() > 0.1  # it did move
-    others = (valid > 0) & (np.arange(width) != straddling)[None, :]
-    np.testing.assert_allclose(flow[..., 0][others], shift, atol=1e-9)
-    np.testing.assert_array_equal(flow[..., 1], 0.0)

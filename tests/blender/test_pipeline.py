@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 import pytest
 import scenes
-from conftest import CORE_IO_AVAILABLE, capture, material_snapshot, silhouette_fetches
+from conftest import CORE_IO_AVAILABLE, capture, material_snapshot
 
 from affinity_denoiser import backend, compositor, features, passes, pipeline
 
@@ -168,18 +168,7 @@ def test_camera_motion_matches_the_vector_pass(run: dict[str, Any]) -> None:
         # Blender's Vector pass: (x, y) motion into the previous frame, y up.
         theirs = np.stack([vectors[frame][..., 0], -vectors[frame][..., 1]], axis=-1)
         hit = depth[frame] < motion.MISS_DEPTH
-        # Equal, but where a fetch at the Vector pass's point would read a previous pixel that
-        # saw another surface (depth off by more than 10 %, or the sky): few, at silhouettes.
-        moved = silhouette_fetches(ours, theirs, hit, 1e-3)
-        assert len(moved) < 0.1 * hit.sum()
-        rows, cols = moved[:, 0], moved[:, 1]
-        at_x, at_y = cols + theirs[rows, cols, 0], rows + theirs[rows, cols, 1]
-        height, width = depth[frame].shape
-        footprint = np.stack([depth[frame - 1][np.clip(np.floor(at_y).astype(int) + dy, 0, height - 1),
-                                               np.clip(np.floor(at_x).astype(int) + dx, 0, width - 1)]
-                              for dy in (0, 1) for dx in (0, 1)], axis=-1)
-        step = footprint.max(axis=-1) / footprint.min(axis=-1)
-        assert len(moved) == 0 or (step > 1.1).mean() > 0.9
+        assert np.abs(ours - theirs)[hit].max() < 1e-3
         assert np.linalg.norm(theirs, axis=-1)[hit].mean() > 0.5  # the camera really moves
         assert 0.8 < valid.mean() < 1.0  # some of the image comes into view
     # The pipeline wrote the same vectors for its frames.

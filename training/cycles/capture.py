@@ -40,9 +40,7 @@ from affinity_denoiser.overrides import Overrides
 #: 2: the capture animates Cycles' seed whatever the scene's setting.
 #: 3: pixels whose first sample scattered in a volume take their depth from a later sample,
 #: and the validity test allows for the depth's change across a pixel (motion.py).
-#: 4: along silhouettes the motion points at the previous pixel that saw the same surface, so
-#: that the fetch does not mix in the other surface (motion.py).
-CAPTURE_VERSION = 4
+CAPTURE_VERSION = 3
 
 #: Added to the scene's seed for the k-th target render (k = 1, 2): far from any seed a
 #: sequence's own frames use, so the target's samples share nothing with the input's.
