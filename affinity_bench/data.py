@@ -145,22 +145,29 @@ def with_spp(frame: dict[str, Any], spp: int) -> dict[str, Any]:
             "valid": frame["valid"], "reference": None, "info": frame["info"]}
 
 
-#: The extension's pre-roll: frames and samples of each frame, whatever the samples per frame
-#: (blender_addon/affinity_denoiser/pipeline.py, DEFAULT_PREROLL_FRAMES and
-#: DEFAULT_PREROLL_SAMPLES).
+#: The extension's pre-roll frames (blender_addon/affinity_denoiser/pipeline.py,
+#: DEFAULT_PREROLL_FRAMES; restated here: that module needs Blender).
 PREROLL_FRAMES = 1
-PREROLL_SAMPLES = 16
+
+
+def preroll_samples(spp: int) -> int:
+    """The samples of each of the extension's pre-roll frames at `spp` samples per frame, by
+    default (pipeline.automatic_preroll_samples): 8 x spp, at least 16, at most 64."""
+    return min(64, max(16, 8 * spp))
 
 
 def preroll_groups(frame: dict[str, Any], spp: int, captured: list[np.ndarray] | None = None,
-                   preroll_frames: int = PREROLL_FRAMES, preroll_spp: int = PREROLL_SAMPLES) -> list[np.ndarray]:
+                   preroll_frames: int = PREROLL_FRAMES, preroll_spp: int | None = None) -> list[np.ndarray]:
     """The sample groups a pre-roll of the first frame denoises at `spp` (methods.py), each
-    [H, W, samples, 18]: `preroll_frames` groups of `preroll_spp` samples, drawn in order from a
+    [H, W, samples, 18]: `preroll_frames` groups of `preroll_spp` samples (None: the extension's
+    default at `spp`, preroll_samples), drawn in order from a
     pool of the first frame's samples that its own `spp` do not use. With `captured` (the
     extension's own pre-roll frames, as capture.py keeps them, in groups of its --spp) the pool
     is all of theirs, whatever `spp`, and must hold the whole pre-roll. Without, it is the
     frame's samples after its first `spp`, which make as many groups as they hold, the last
     one smaller where the pool runs out."""
+    if preroll_spp is None:
+        preroll_spp = preroll_samples(spp)
     if captured:
         pool = np.concatenate(captured, axis=2)
         if pool.shape[2] < preroll_frames * preroll_spp:

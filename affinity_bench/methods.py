@@ -18,7 +18,7 @@ import numpy as np
 
 import affinity_core
 
-from .data import PREROLL_FRAMES, PREROLL_SAMPLES
+from .data import PREROLL_FRAMES
 
 Runner = Callable[[dict[str, Any]], np.ndarray]
 
@@ -132,7 +132,8 @@ def make_methods(models: list[tuple[str, str]]) -> list[Method]:
         methods.append(Method(f"ours-{label}", "ours", f"affinity_core.Denoiser, model {label} ({path})", _ours(model)))
         methods.append(Method(f"ours-{label}+preroll", "ours",
                               f"model {label} with the Blender extension's pre-roll: before the first frame, "
-                              f"{PREROLL_FRAMES} frame(s) of {PREROLL_SAMPLES} samples denoised as a still camera: "
+                              f"{PREROLL_FRAMES} frame(s) of 8 times the samples per frame (16 to 64) denoised "
+                              "as a still camera: "
                               "from the extension's own pre-roll where the sequence holds it (Cycles suite), else "
                               "from the first frame's spare samples (fewer where it holds fewer); costs those "
                               "samples once per sequence",

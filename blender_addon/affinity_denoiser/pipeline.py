@@ -27,12 +27,21 @@ MAX_SAMPLES_PER_FRAME = 8
 #: sub-renders once per sequence (docs/BLENDER.md, "Pre-roll").
 DEFAULT_PREROLL_FRAMES = 1
 MAX_PREROLL_FRAMES = 8
-#: Samples of each pre-roll frame, whatever the frames' own count: the first frame's history is
-#: then as clean as a 16-sample frame's for a cost paid once per sequence; one frame of 16 scores
-#: above two of 8 on ColorVideoVDP and SMAPE (docs/BLENDER.md, "Pre-roll").
-DEFAULT_PREROLL_SAMPLES = 16
+#: Samples of each pre-roll frame: AUTO_PREROLL_SAMPLES (the setting's default) takes
+#: PREROLL_FRAMES_OF_SAMPLES times the frames' own count, at least MIN_AUTO_PREROLL_SAMPLES and
+#: at most MAX_PREROLL_SAMPLES (16 at 1 and 2 samples per frame, 32 at 4, 64 from 8), for a cost
+#: paid once per sequence. A history of eight frames' samples lifted ColorVideoVDP at 4 and 8
+#: samples per frame over a fixed 16; at 2, 32 or 64 scored below 16 (docs/BLENDER.md, "Pre-roll").
+AUTO_PREROLL_SAMPLES = 0
+PREROLL_FRAMES_OF_SAMPLES = 8
+MIN_AUTO_PREROLL_SAMPLES = 16
 #: The core's limit on a frame's samples (affinity/frame.h, kMaxSpp).
 MAX_PREROLL_SAMPLES = 64
+
+
+def automatic_preroll_samples(samples_per_frame: int) -> int:
+    """The pre-roll frame's samples that AUTO_PREROLL_SAMPLES stands for."""
+    return min(MAX_PREROLL_SAMPLES, max(MIN_AUTO_PREROLL_SAMPLES, PREROLL_FRAMES_OF_SAMPLES * samples_per_frame))
 #: Added to the scene's seed (times the pre-roll frame's number) for the pre-roll's renders.
 PREROLL_SEED_STEP = 7_919_111
 
@@ -105,7 +114,7 @@ class Settings:
     output_folder: str = ""
     keep_sample_frames: bool = False
     preroll_frames: int = DEFAULT_PREROLL_FRAMES
-    preroll_samples: int = DEFAULT_PREROLL_SAMPLES
+    preroll_samples: int = AUTO_PREROLL_SAMPLES
 
     @classmethod
     def from_properties(cls, props: Any) -> Settings:
@@ -126,8 +135,14 @@ class Settings:
             raise ValueError(f"samples per frame must be 1 to {MAX_SAMPLES_PER_FRAME}")
         if not 0 <= self.preroll_frames <= MAX_PREROLL_FRAMES:
             raise ValueError(f"pre-roll frames must be 0 to {MAX_PREROLL_FRAMES}")
-        if not 1 <= self.preroll_samples <= MAX_PREROLL_SAMPLES:
-            raise ValueError(f"pre-roll samples must be 1 to {MAX_PREROLL_SAMPLES}")
+        if not 0 <= self.preroll_samples <= MAX_PREROLL_SAMPLES:
+            raise ValueError(f"pre-roll samples must be 0 (automatic) to {MAX_PREROLL_SAMPLES}")
+
+    def preroll_sample_count(self) -> int:
+        """Samples of each pre-roll frame: the setting, or the automatic count where it is 0."""
+        if self.preroll_samples == AUTO_PREROLL_SAMPLES:
+            return automatic_preroll_samples(self.samples_per_frame)
+        return self.preroll_samples
 
 
 @dataclass
@@ -355,7 +370,7 @@ class SequenceCapture:
     def _preroll(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
                  before_sample: Callable[[int], None] | None) -> Generator[int, None, list[dict[str, Any]]]:
         """Renders ``frame`` preroll_frames more times, each with another seed (independent
-        samples) and preroll_samples samples, and denoises each as a frame of a still camera,
+        samples) and ``preroll_sample_count()`` samples, and denoises each as a frame of a still camera,
         the output unused: the frame proper then starts with a history (DEFAULT_PREROLL_FRAMES).
         Yields 0 after each sub-render (none of the frame's own samples is done yet); returns the
         pre-roll frames' input to the core (their samples None where they were streamed). Another
@@ -375,11 +390,11 @@ class SequenceCapture:
     def _preroll_frame(self, frame: int, camera: motion.Camera, ray_start: np.ndarray, stream: bool,
                        before_sample: Callable[[int], None] | None, group: int,
                        seed: int) -> Generator[int, None, dict[str, Any]]:
-        """Pre-roll frame ``group`` (from 1): preroll_samples one-sample sub-renders at offsets
+        """Pre-roll frame ``group`` (from 1): ``preroll_sample_count()`` one-sample sub-renders at offsets
         0..S-1 of the frames' sample set, S at a time, each block of S from a seed of its own
         (``preroll_seed``): where a sub-render is one sample of a set of S (sample subsets),
         an offset past S renders nothing, and a larger set would change the frames' samples."""
-        spp, denoiser = self.settings.preroll_samples, self.denoiser
+        spp, denoiser = self.settings.preroll_sample_count(), self.denoiser
         set_size = self.settings.samples_per_frame
         still = np.zeros((camera.height, camera.width, 2), np.float32)
         samples = None if stream else self._sample_buffer(camera, spp)

@@ -13,8 +13,8 @@ from typing import Any
 import bpy
 
 from .pipeline import (
+    AUTO_PREROLL_SAMPLES,
     DEFAULT_PREROLL_FRAMES,
-    DEFAULT_PREROLL_SAMPLES,
     MAX_PREROLL_FRAMES,
     MAX_PREROLL_SAMPLES,
     MAX_SAMPLES_PER_FRAME,
@@ -88,10 +88,10 @@ class AffinityDenoiserSettings(bpy.types.PropertyGroup):
     )
     preroll_samples: bpy.props.IntProperty(
         name="Pre-roll Samples",
-        description="Samples of each pre-roll frame, whatever the samples per frame: more give "
-        "the first frame a cleaner history",
-        default=DEFAULT_PREROLL_SAMPLES,
-        min=1,
+        description="Samples of each pre-roll frame: more give the first frame a cleaner "
+        "history. 0: automatic, 8 times the samples per frame (16 to 64)",
+        default=AUTO_PREROLL_SAMPLES,
+        min=0,
         max=MAX_PREROLL_SAMPLES,
     )
     output_folder: bpy.props.StringProperty(

@@ -359,9 +359,8 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
     # Quality over six seeds: at 4 spp and 64x48 one seed's error swings by up to 4x, and one
     # firefly in a pre-roll frame can stay in the history (bpy 5.3.0, seed 0: 0.208 against
     # 0.122 without). Measured on bpy 5.0.1 with the extension's model: the default pre-roll
-    # (one frame of 16) takes the median relMSE to 0.87x and SMAPE to 0.80x of none's (with the
-    # model before, 0.91x and 0.80x, and two frames of 8 0.82x and 0.81x: docs/BLENDER.md,
-    # "Pre-roll").
+    # (one frame of 32 at 4 spp) takes the median relMSE to 0.80x and SMAPE to 0.78x of none's
+    # (one frame of 16: 0.87x and 0.80x; docs/BLENDER.md, "Pre-roll").
     from affinity_core import metrics
     frames = pipeline.DEFAULT_PREROLL_FRAMES
     errors: dict[int, list[float]] = {0: [], frames: []}
@@ -376,7 +375,7 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
                 jobs[preroll] = job
     plain, prerolled = jobs[0], jobs[frames]
     assert len(plain.timings.sub_renders) == 2 * spp
-    assert len(prerolled.timings.sub_renders) == 2 * spp + frames * pipeline.DEFAULT_PREROLL_SAMPLES
+    assert len(prerolled.timings.sub_renders) == 2 * spp + frames * pipeline.automatic_preroll_samples(spp)
     first, first_plain = prerolled.results[0], plain.results[0]
     np.testing.assert_array_equal(first.frame_data["samples"], first_plain.frame_data["samples"])
     assert not first_plain.frame_data["valid"].any()
@@ -396,14 +395,18 @@ def test_the_preroll_gives_the_first_frame_a_history_from_other_samples(tmp_path
 
 
 def test_preroll_frames_have_their_own_sample_count(tmp_path: Any) -> None:
-    """By default each pre-roll frame has DEFAULT_PREROLL_SAMPLES (16) samples whatever the
-    frames' own count (docs/BLENDER.md, "Pre-roll", has what that buys on the Cycles suite), and
-    the setting changes it; the frame's own samples stay its own. Streamed to the core (how a
-    render runs) the 16-sample pre-roll frame before the 2-sample frame gives what the kept
-    frames give, but for the depth normalisation (test_streamed_samples_give_...)."""
+    """By default each pre-roll frame has 8 times the frames' own samples, 16 to 64
+    (docs/BLENDER.md, "Pre-roll", has what that buys on the Cycles suite): 16 before frames of 2
+    samples; the setting changes it; the frame's own samples stay its own. Streamed to the core
+    (how a render runs) the 16-sample pre-roll frame before the 2-sample frame gives what the
+    kept frames give, but for the depth normalisation (test_streamed_samples_give_...)."""
+    assert (pipeline.DEFAULT_PREROLL_FRAMES, pipeline.AUTO_PREROLL_SAMPLES) == (1, 0)
+    assert [pipeline.automatic_preroll_samples(s) for s in (1, 2, 4, 8, 16)] == [16, 16, 32, 64, 64]
+    assert pipeline.Settings(samples_per_frame=4).preroll_sample_count() == 32
+    assert pipeline.Settings(samples_per_frame=4, preroll_samples=5).preroll_sample_count() == 5
     scene = scenes.build_scene(frames=1)
     kept = {}
-    for setting, expected in ((None, pipeline.DEFAULT_PREROLL_SAMPLES), (3, 3)):
+    for setting, expected in ((None, 16), (3, 3)):
         scene.render.filepath = str(tmp_path / f"samples{setting}" / "frame_")
         settings = pipeline.Settings(samples_per_frame=2, preroll_frames=1)
         if setting is not None:
@@ -427,7 +430,6 @@ def test_preroll_frames_have_their_own_sample_count(tmp_path: Any) -> None:
                    / float((own_light / (1 + own_light)).mean()) - 1) < 0.1
         assert len(job.timings.sub_renders) == expected + 2
         kept[setting] = job.results[0].denoised
-    assert (pipeline.DEFAULT_PREROLL_FRAMES, pipeline.DEFAULT_PREROLL_SAMPLES) == (1, 16)
     scene.render.filepath = str(tmp_path / "streamed" / "frame_")
     streamed = pipeline.DenoiseRender(scene, scene.view_layers[0], [1],
                                       pipeline.Settings(samples_per_frame=2, preroll_frames=1))
@@ -505,8 +507,9 @@ def test_a_preroll_out_of_range_is_refused() -> None:
         pipeline.Settings(preroll_frames=pipeline.MAX_PREROLL_FRAMES + 1).check()
     with pytest.raises(ValueError, match="pre-roll frames must be 0 to"):
         pipeline.Settings(preroll_frames=-1).check()
-    for samples in (0, pipeline.MAX_PREROLL_SAMPLES + 1):
-        with pytest.raises(ValueError, match=f"pre-roll samples must be 1 to {pipeline.MAX_PREROLL_SAMPLES}"):
+    for samples in (-1, pipeline.MAX_PREROLL_SAMPLES + 1):
+        with pytest.raises(ValueError,
+                           match=rf"pre-roll samples must be 0 \(automatic\) to {pipeline.MAX_PREROLL_SAMPLES}"):
             pipeline.Settings(preroll_samples=samples).check()
     from conftest import CORE_AVAILABLE
     if CORE_AVAILABLE:  # the bound restates the core's, which the extension must not need to import

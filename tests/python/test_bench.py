@@ -236,21 +236,25 @@ def test_a_captured_preroll_is_used_as_the_extension_renders_it() -> None:
     frames, whatever the samples per frame and whatever the frame itself holds; the spare
     samples of the frame likewise where none was captured."""
     frame = {"samples": np.random.default_rng(9).random((4, 5, 40, 18), dtype=np.float32)}
-    captured = [np.random.default_rng(g).random((4, 5, 8, 18), dtype=np.float32) for g in range(2)]
-    for spp in (2, 4, 8):
-        groups = data.preroll_groups(frame, spp, captured)  # the default: one frame of 16
-        assert len(groups) == 1
-        np.testing.assert_array_equal(groups[0][:, :, :8], captured[0])
-        np.testing.assert_array_equal(groups[0][:, :, 8:], captured[1])
+    captured = [np.random.default_rng(g).random((4, 5, 8, 18), dtype=np.float32) for g in range(8)]
+    # The extension's default: one frame of 8 x the samples per frame, 16 to 64.
+    assert data.PREROLL_FRAMES == 1
+    assert [data.preroll_samples(spp) for spp in (1, 2, 4, 8, 16)] == [16, 16, 32, 64, 64]
+    for spp, pooled in ((2, 2), (4, 4), (8, 8)):
+        groups = data.preroll_groups(frame, spp, captured)
+        assert len(groups) == 1 and groups[0].shape[2] == 8 * pooled
+        for g in range(pooled):
+            np.testing.assert_array_equal(groups[0][:, :, 8 * g:8 * (g + 1)], captured[g])
         two = data.preroll_groups(frame, spp, captured, preroll_frames=2, preroll_spp=8)
-        for group, source in zip(two, captured, strict=True):
+        for group, source in zip(two, captured[:2], strict=True):
             np.testing.assert_array_equal(group, source)
-        spare = data.preroll_groups(frame, spp)
+        spare = data.preroll_groups(frame, spp)  # 40 - spp spare samples, the one frame of them
         assert len(spare) == 1
-        np.testing.assert_array_equal(spare[0], frame["samples"][:, :, spp:spp + 16])
+        count = min(data.preroll_samples(spp), 40 - spp)
+        np.testing.assert_array_equal(spare[0], frame["samples"][:, :, spp:spp + count])
     three = data.preroll_groups(frame, 8, preroll_frames=3, preroll_spp=12)  # 32 spare: 12, 12, 8
     assert [g.shape[2] for g in three] == [12, 12, 8]
     np.testing.assert_array_equal(three[2], frame["samples"][:, :, 32:40])
-    assert (data.PREROLL_FRAMES, data.PREROLL_SAMPLES) == (1, 16)  # the extension's defaults
+    captured = captured[:2]
     with pytest.raises(ValueError, match="holds 16 samples per pixel, fewer than the 1 x 24 asked"):
         data.preroll_groups(frame, 2, captured, preroll_spp=24)

@@ -2,7 +2,7 @@
 
     .venv-blender/bin/python training/cycles/make_data.py [--out DIR] [--train-seeds 0-99]
         [--val-seeds 9000-9005] [--frames 8] [--train-frames 6] [--size 160x96] [--spp 8] [--train-target-spp 64]
-        [--val-target-spp 256] [--blender-oidn-spp 2,4,8] [--preroll-frames 2] [--threads 2]
+        [--val-target-spp 256] [--blender-oidn-spp 2,4,8] [--preroll-frames 8] [--threads 2]
         [--refresh-inputs] [--deepen-references]
 
 Each sequence is a scene of the generator (scene_generator.py) by seed, captured by capture.py:
@@ -37,7 +37,7 @@ import capture  # noqa: E402
 import scene_generator  # noqa: E402
 
 import affinity_denoiser  # noqa: E402
-from affinity_denoiser.pipeline import DEFAULT_PREROLL_FRAMES, DEFAULT_PREROLL_SAMPLES  # noqa: E402
+from affinity_denoiser.pipeline import DEFAULT_PREROLL_FRAMES, automatic_preroll_samples  # noqa: E402
 
 
 def seed_list(text: str) -> list[int]:
@@ -179,7 +179,7 @@ def main(argv: list[str] | None = None) -> int:
                              "until each half has --val-target-spp, keeping their inputs")
     args = parser.parse_args(argv)
     if args.preroll_frames is None:
-        args.preroll_frames = math.ceil(DEFAULT_PREROLL_FRAMES * DEFAULT_PREROLL_SAMPLES / args.spp)
+        args.preroll_frames = math.ceil(DEFAULT_PREROLL_FRAMES * automatic_preroll_samples(args.spp) / args.spp)
     if args.deepen_references and args.refresh_inputs:
         parser.error("--deepen-references and --refresh-inputs are separate runs")
     if min(args.frames, args.train_frames) < 2:
