@@ -37,13 +37,13 @@ PREROLL_FRAMES_OF_SAMPLES = 8
 MIN_AUTO_PREROLL_SAMPLES = 16
 #: The core's limit on a frame's samples (affinity/frame.h, kMaxSpp).
 MAX_PREROLL_SAMPLES = 64
+#: Added to the scene's seed (times the pre-roll frame's number) for the pre-roll's renders.
+PREROLL_SEED_STEP = 7_919_111
 
 
 def automatic_preroll_samples(samples_per_frame: int) -> int:
     """The pre-roll frame's samples that AUTO_PREROLL_SAMPLES stands for."""
     return min(MAX_PREROLL_SAMPLES, max(MIN_AUTO_PREROLL_SAMPLES, PREROLL_FRAMES_OF_SAMPLES * samples_per_frame))
-#: Added to the scene's seed (times the pre-roll frame's number) for the pre-roll's renders.
-PREROLL_SEED_STEP = 7_919_111
 
 
 def preroll_seed(seed: int, group: int, block: int) -> int:
