@@ -263,6 +263,62 @@ def test_deepened_references_average_more_independent_samples(
     assert all(new < old for new, old in zip(new_summary["target_half_smape"], summary["target_half_smape"]))
 
 
+def test_an_input_draw_keeps_the_references_and_draws_other_noise(
+        captured: tuple[str, dict], tmp_path: Any, capsys: pytest.CaptureFixture[str]) -> None:
+    """make_data --input-draw: the inputs, the pre-roll and Blender's frames captured again from
+    another seed, the references copied; the new input's noise is not the old one's."""
+    import make_data
+
+    import affinity_core
+
+    folder, summary = captured
+    scene = build_test_scene()
+    scene.cycles.seed = SEED + capture.INPUT_DRAW_SEED_STRIDE
+    with pytest.raises(ValueError, match="is not draw 2 of"):
+        capture.capture_input_draw(scene, str(tmp_path / "wrong"), folder, 2, SETTINGS)
+    drawn = str(tmp_path / "draw1")
+    new_summary = capture.capture_input_draw(scene, drawn, folder, 1, SETTINGS)
+    assert new_summary["input_draw"] == 1 and new_summary["input_seed"] == SEED + 1_000_003
+    assert new_summary["seed"] == summary["seed"] and new_summary["seconds"]["targets"] == 0.0
+    assert new_summary["reference_spp"] == summary["reference_spp"] and new_summary["preroll_frames"] == 2
+    assert sorted(os.listdir(drawn)) == sorted(os.listdir(folder))
+    with open(os.path.join(folder, "reference_halves.npz"), "rb") as a, \
+            open(os.path.join(drawn, "reference_halves.npz"), "rb") as b:
+        assert a.read() == b.read()
+    before_oidn, after_oidn = np.load(os.path.join(folder, "blender_oidn.npz")), np.load(
+        os.path.join(drawn, "blender_oidn.npz"))
+    assert sorted(after_oidn.files) == sorted(before_oidn.files)
+    assert not np.array_equal(after_oidn["spp4_frame1"], before_oidn["spp4_frame1"])
+    # The same seed captured again (refresh_inputs) for contrast.
+    same_seed = str(tmp_path / "same_seed")
+    capture.refresh_inputs(build_test_scene(), same_seed, folder, SETTINGS)
+
+    def distances(other: str) -> list[float]:
+        """Per frame, the mean squared distance between the two captures' pixel means."""
+        result = []
+        for path, old_path in zip(affinity_core.list_frame_files(other), affinity_core.list_frame_files(folder),
+                                  strict=True):
+            frame, before = affinity_core.read_frame(path), affinity_core.read_frame(old_path)
+            np.testing.assert_array_equal(frame["reference"], before["reference"])
+            means = [(f["samples"][..., 0:3] + f["samples"][..., 3:6]).mean(2) for f in (frame, before)]
+            result.append(float(np.mean((means[0] - means[1]) ** 2)))
+        return result
+
+    # Measured 23 against 1.05 summed over the 4 frames (8-56x per frame): a capture with the same
+    # seed differs only where Cycles' light sampling does from one build of the scene to the next.
+    drawn_distances, same_distances = distances(drawn), distances(same_seed)
+    assert sum(drawn_distances) > 10 * sum(same_distances), (drawn_distances, same_distances)
+    # make_data's checks: the draw needs its references' cache, complete, and another output.
+    for argv, message in ((["--input-draw", "1"], "go together"),
+                          (["--input-draw", "1", "--references-from", str(tmp_path), "--out", str(tmp_path)],
+                           "another cache"),
+                          (["--input-draw", "1", "--references-from", str(tmp_path / "none"), "--out",
+                            str(tmp_path / "out"), "--val-seeds", "9000"], "lacks the complete validation")):
+        with pytest.raises(SystemExit):
+            make_data.main(argv)
+        assert message in capsys.readouterr().err
+
+
 #: ours / Blender's OIDN SMAPE on this sequence when it was recorded (bpy 5.0.1, the capture
 #: animating the seed): the core's built-in model 0.2036 / 0.1909 (0.1971 before, with the
 #: scene's static seed); the extension's Cycles model (backend.CYCLES_MODEL) 0.2078 / 0.1906 and

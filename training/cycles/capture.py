@@ -46,6 +46,10 @@ CAPTURE_VERSION = 3
 #: sequence's own frames use, so the target's samples share nothing with the input's.
 TARGET_SEED_STRIDE = 7_919_111
 
+#: Added d times to a validation scene's seed for its d-th draw of inputs (capture_input_draw):
+#: no multiple of it up to a hundred draws meets a target's seed.
+INPUT_DRAW_SEED_STRIDE = 1_000_003
+
 
 @dataclass
 class CaptureSettings:
@@ -102,8 +106,6 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
 
     base_seed = int(scene.cycles.seed)
     target_seconds = 0.0
-    oidn: dict[str, np.ndarray] = {}
-    oidn_seconds: dict[int, list[float]] = {s: [] for s in settings.blender_oidn_spp}
     target_noise: list[float] = []
     halves: dict[str, np.ndarray] = {}
     for index, result in enumerate(results):
@@ -118,14 +120,9 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         if len(targets) == 2:
             target_noise.append(metrics.smape(targets[0], targets[1]))
             halves[f"a_frame{index}"], halves[f"b_frame{index}"] = targets
-        for spp in settings.blender_oidn_spp:
-            image, seconds = render_combined(scene, spp, base_seed, denoise=True)
-            oidn[f"spp{spp}_frame{index}"] = image
-            oidn_seconds[spp].append(seconds)
         _write_frame(folder, index, result, np.mean(targets, axis=0).astype(np.float32),
                      settings.target_spp * settings.targets)
-    if oidn:
-        np.savez_compressed(os.path.join(folder, "blender_oidn.npz"), **oidn)
+    oidn_seconds = _render_blender_oidn(scene, folder, [result.frame for result in results], settings, progress)
     if halves:
         np.savez_compressed(os.path.join(folder, "reference_halves.npz"), **halves)
 
@@ -146,8 +143,43 @@ def capture_sequence(scene: Any, folder: str, settings: CaptureSettings,
         # SMAPE between the two independent target halves, per frame: the reference (their
         # mean) has roughly half this error's variance against the converged image.
         "target_half_smape": target_noise,
-        "blender_oidn_seconds": {str(s): v for s, v in oidn_seconds.items()},
+        "blender_oidn_seconds": oidn_seconds,
     }
+    if settings.preroll_frames:
+        _capture_preroll(scene, folder, settings, summary)
+    _write_summary(folder, summary)
+    return summary
+
+
+def capture_input_draw(scene: Any, folder: str, reference_folder: str, draw: int, settings: CaptureSettings,
+                       progress: Callable[[str], None] = lambda text: None) -> dict[str, Any]:
+    """Another draw of a validation sequence's noise: the inputs, the pre-roll and Blender's own
+    denoiser of ``scene`` captured into ``folder`` (created; must not hold frames yet) from the
+    scene's current seed, which the caller has moved ``draw`` strides (``INPUT_DRAW_SEED_STRIDE``)
+    from the seed of ``reference_folder``, a complete validation sequence of the same scene. The
+    references, which no input seed changes, are taken from there. One draw of 8 frames scores a
+    denoiser by the luck of its samples as much as by its skill; several draws of the same scene
+    tell the two apart (docs/CYCLES_DATA.md, "Draws"). Returns the summary, also written."""
+    import affinity_core
+
+    summary = _read_summary(reference_folder, settings.spp)
+    if int(scene.cycles.seed) != summary["seed"] + draw * INPUT_DRAW_SEED_STRIDE:
+        raise ValueError(f"the scene's seed {scene.cycles.seed} is not draw {draw} of {reference_folder}'s "
+                         f"seed {summary['seed']}")
+    _start_folder(folder)
+    run, input_seconds = _capture_inputs(scene, folder, settings, progress)
+    if len(run.results) != summary["frames"]:
+        raise ValueError(f"{reference_folder} has {summary['frames']} frames, the scene {len(run.results)}")
+    for index, result in enumerate(run.results):
+        old = affinity_core.read_frame(os.path.join(reference_folder, affinity_core.frame_file_name(index)))
+        _write_frame(folder, index, result, old["reference"], old["info"]["reference_spp"])
+    _copy_extras(reference_folder, folder, ("reference_halves.npz",))
+    summary.update(_input_summary(), input_draw=draw, input_seed=int(scene.cycles.seed),
+                   references_from=os.path.abspath(reference_folder))
+    # No target was rendered here (the references are the other sequence's).
+    summary["seconds"].update({"input": input_seconds, "targets": 0.0, **_input_seconds(run)})
+    summary["blender_oidn_seconds"] = _render_blender_oidn(scene, folder, [r.frame for r in run.results], settings,
+                                                           progress)
     if settings.preroll_frames:
         _capture_preroll(scene, folder, settings, summary)
     _write_summary(folder, summary)
@@ -264,6 +296,24 @@ def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings, summary
     os.replace(temporary, os.path.join(folder, "preroll.npz"))
     summary["preroll_frames"] = settings.preroll_frames
     summary["seconds"]["preroll"] = seconds
+
+
+def _render_blender_oidn(scene: Any, folder: str, frames: list[int], settings: CaptureSettings,
+                         progress: Callable[[str], None]) -> dict[str, list[float]]:
+    """Blender's own denoiser at each of settings.blender_oidn_spp, every frame rendered from the
+    scene's seed, into ``folder``/blender_oidn.npz (none: nothing written); the wall seconds of
+    each render, by sample count."""
+    images: dict[str, np.ndarray] = {}
+    seconds: dict[str, list[float]] = {str(spp): [] for spp in settings.blender_oidn_spp}
+    for index, frame in enumerate(frames):
+        scene.frame_set(frame)
+        progress(f"Blender's denoiser, frame {frame}")
+        for spp in settings.blender_oidn_spp:
+            images[f"spp{spp}_frame{index}"], took = render_combined(scene, spp, int(scene.cycles.seed), denoise=True)
+            seconds[str(spp)].append(took)
+    if images:
+        np.savez_compressed(os.path.join(folder, "blender_oidn.npz"), **images)
+    return seconds
 
 
 def _run_extension(scene: Any, folder: str, frames: list[int], spp: int, preroll_frames: int,

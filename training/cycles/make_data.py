@@ -3,7 +3,7 @@
     .venv-blender/bin/python training/cycles/make_data.py [--out DIR] [--train-seeds 0-99]
         [--val-seeds 9000-9005] [--frames 8] [--train-frames 6] [--size 160x96] [--spp 8] [--train-target-spp 64]
         [--val-target-spp 256] [--blender-oidn-spp 2,4,8] [--preroll-frames 8] [--threads 2]
-        [--refresh-inputs] [--deepen-references]
+        [--refresh-inputs] [--deepen-references] [--input-draw N --references-from DIR]
 
 Each sequence is a scene of the generator (scene_generator.py) by seed, captured by capture.py:
 ``OUT/train/cycles_NNNNN`` with one independent noisy target per frame (Noise2Noise),
@@ -13,6 +13,12 @@ first frame (added to complete sequences that lack it). A sequence is rendered i
 temporary folder and renamed when complete, so the command can be stopped at any time and run
 again to continue; finished sequences are skipped. The default cache is
 ``$AFFINITY_DATA`` or ``~/.cache/affinity/cycles-v1``.
+
+``--input-draw N --references-from DIR`` (N >= 1) captures the validation sequences of DIR again
+with other noise: the inputs, the pre-roll and Blender's own denoiser from the seed moved N
+strides (``capture.INPUT_DRAW_SEED_STRIDE``), the references taken from DIR's, into ``--out``:
+a cache the benchmark reads as it reads DIR, for scoring methods over several draws of the same
+scenes (docs/CYCLES_DATA.md, "Draws"). Training sequences are not drawn again.
 """
 
 from __future__ import annotations
@@ -72,7 +78,7 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
     frames = args.frames if validation else args.train_frames
     scene = scene_generator.build_scene(seed, width=width, height=height, frames=frames,
                                         threads=args.threads)
-    scene.cycles.seed = seed
+    scene.cycles.seed = seed + args.input_draw * capture.INPUT_DRAW_SEED_STRIDE
     # Artists render with and without an animated seed: both noise behaviours over time.
     scene.cycles.use_animated_seed = seed % 2 == 0
     settings = capture.CaptureSettings(
@@ -87,7 +93,11 @@ def render_sequence(split: str, seed: int, folder: str, args: argparse.Namespace
     temporary = folder + f".tmp-{os.getpid()}"
     summary = sequence_summary(folder)
     deepen = needs_deeper_references(split, summary, args)
-    if summary is None:
+    if summary is None and args.input_draw:
+        reference_folder = os.path.join(args.references_from, split, os.path.basename(folder))
+        summary = capture.capture_input_draw(scene, temporary, reference_folder, args.input_draw, settings)
+        os.replace(temporary, folder)
+    elif summary is None:
         summary = capture.capture_sequence(scene, temporary, settings)
         os.replace(temporary, folder)
     elif deepen or capture_version(folder) != capture.CAPTURE_VERSION:
@@ -177,7 +187,28 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--deepen-references", action="store_true",
                         help="add samples to the reference halves of complete validation sequences "
                              "until each half has --val-target-spp, keeping their inputs")
+    parser.add_argument("--input-draw", type=int, default=0, metavar="N",
+                        help="capture the validation sequences of --references-from again with the "
+                             "input's seed moved N strides, keeping their references (N >= 1)")
+    parser.add_argument("--references-from", metavar="DIR",
+                        help="the cache whose validation sequences --input-draw draws again")
     args = parser.parse_args(argv)
+    if args.input_draw < 0:
+        parser.error(f"--input-draw must be at least 1, not {args.input_draw}")
+    if bool(args.input_draw) != bool(args.references_from):
+        parser.error("--input-draw and --references-from go together")
+    if args.input_draw:
+        if os.path.realpath(args.out) == os.path.realpath(args.references_from):
+            parser.error("--out must be another cache than --references-from")
+        if args.deepen_references or args.refresh_inputs:
+            parser.error("--input-draw takes the references as they are: no --deepen-references or "
+                         "--refresh-inputs")
+        args.train_seeds = []  # only the benchmark's sequences are drawn again
+        missing = [s for s in args.val_seeds if sequence_summary(
+            os.path.join(args.references_from, "val", f"cycles_{s:05d}")) is None]
+        if missing:
+            parser.error(f"{args.references_from} lacks the complete validation sequences of seeds "
+                         f"{', '.join(map(str, missing))} (make_data.py --out {args.references_from} makes them)")
     if args.preroll_frames is None:
         args.preroll_frames = math.ceil(DEFAULT_PREROLL_FRAMES * automatic_preroll_samples(args.spp) / args.spp)
     if args.deepen_references and args.refresh_inputs:

@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# Scores the Blender extension's model (with its pre-roll), OpenImageDenoise on the same passes
+# and Blender's own denoiser on several draws of the Cycles suite's noise: the same scenes and
+# references, the inputs captured again from other seeds (training/cycles/make_data.py
+# --input-draw N --references-from DATA0 --out DATAN). One draw of 8 frames scores a method by
+# the luck of its samples as well as by its skill; the spread over draws says which per-scene
+# differences the suite can tell apart (docs/CYCLES_DATA.md, "Draws").
+#   scripts/cycles_draws.sh OUT DATA0 [DATA1 ...]
+# MODEL (default the extension's models/cycles.affw) is the model scored. Per draw k: the
+# benchmark's results in OUT/draw<k>/ and ColorVideoVDP's in OUT/draw<k>/cvvdp.csv (the frames
+# in a scratch folder, removed); then the table over draws, OUT/draws.md
+# (scripts/cycles_draws_table.py). Needs the benchmark's .venv and the .venv-cvvdp of
+# scripts/setup_cvvdp.sh. About 5 minutes a draw on 2 cores.
+set -euo pipefail
+root=$(cd "$(dirname "$0")/.." && pwd)
+if [ $# -lt 2 ]; then
+  echo "usage: scripts/cycles_draws.sh OUT DATA0 [DATA1 ...]" >&2
+  exit 2
+fi
+out=$1
+shift
+model=${MODEL:-$root/blender_addon/affinity_denoiser/models/cycles.affw}
+for tool in "$root/.venv/bin/python" "$root/.venv-cvvdp/bin/python"; do
+  if [ ! -x "$tool" ]; then
+    echo "cycles_draws: $tool is missing (scripts/setup.sh, scripts/setup_cvvdp.sh)" >&2
+    exit 2
+  fi
+done
+mkdir -p "$out"
+scratch=$(mktemp -d)
+trap 'rm -rf "$scratch"' EXIT INT TERM
+export PYTHONPATH="$root/build/python:$root"
+k=0
+for data in "$@"; do
+  draw="$out/draw$k"
+  rm -rf "$draw"
+  echo "cycles_draws: draw $k, $data" >&2
+  "$root/.venv/bin/python" -m affinity_bench --config cycles --data "$data" --model "extension=$model" \
+    --methods ours-extension+preroll,oidn,blender-oidn --no-reference-noise --out "$draw" \
+    --save-outputs "$scratch/draw$k" > "$scratch/bench$k.log"
+  "$root/.venv-cvvdp/bin/python" "$root/scripts/cvvdp_score.py" "$scratch/draw$k" --out "$draw/cvvdp.csv" \
+    > "$scratch/cvvdp$k.log"
+  rm -rf "$scratch/draw$k"
+  k=$((k + 1))
+done
+"$root/.venv/bin/python" "$root/scripts/cycles_draws_table.py" "$out" --command "scripts/cycles_draws.sh $out $*"
