@@ -6,7 +6,8 @@
 # the luck of its samples as well as by its skill; the spread over draws says which per-scene
 # differences the suite can tell apart (docs/CYCLES_DATA.md, "Draws").
 #   scripts/cycles_draws.sh OUT DATA0 [DATA1 ...]
-# MODEL (default the extension's models/cycles.affw) is the model scored. Per draw k: the
+# MODEL (default the extension's models/cycles.affw) is the model scored (Blender's denoiser
+# comes with every Cycles run of the benchmark). Per draw k: the
 # benchmark's results in OUT/draw<k>/ and ColorVideoVDP's in OUT/draw<k>/cvvdp.csv (the frames
 # in a scratch folder, removed); then the table over draws, OUT/draws.md
 # (scripts/cycles_draws_table.py). Needs the benchmark's .venv and the .venv-cvvdp of
@@ -30,16 +31,21 @@ mkdir -p "$out"
 scratch=$(mktemp -d)
 trap 'rm -rf "$scratch"' EXIT INT TERM
 export PYTHONPATH="$root/build/python:$root"
+quietly() {  # quietly LOG COMMAND...: its output into LOG, shown only if it fails
+  local log=$1
+  shift
+  "$@" > "$log" 2>&1 || { cat "$log" >&2; echo "cycles_draws: failed: $*" >&2; exit 1; }
+}
 k=0
 for data in "$@"; do
   draw="$out/draw$k"
   rm -rf "$draw"
   echo "cycles_draws: draw $k, $data" >&2
-  "$root/.venv/bin/python" -m affinity_bench --config cycles --data "$data" --model "extension=$model" \
-    --methods ours-extension+preroll,oidn,blender-oidn --no-reference-noise --out "$draw" \
-    --save-outputs "$scratch/draw$k" > "$scratch/bench$k.log"
-  "$root/.venv-cvvdp/bin/python" "$root/scripts/cvvdp_score.py" "$scratch/draw$k" --out "$draw/cvvdp.csv" \
-    > "$scratch/cvvdp$k.log"
+  quietly "$scratch/bench$k.log" "$root/.venv/bin/python" -m affinity_bench --config cycles --data "$data" \
+    --model "extension=$model" --methods ours-extension+preroll,oidn --no-reference-noise --out "$draw" \
+    --save-outputs "$scratch/draw$k"
+  quietly "$scratch/cvvdp$k.log" "$root/.venv-cvvdp/bin/python" "$root/scripts/cvvdp_score.py" "$scratch/draw$k" \
+    --out "$draw/cvvdp.csv"
   rm -rf "$scratch/draw$k"
   k=$((k + 1))
 done
