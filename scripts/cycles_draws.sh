@@ -8,7 +8,7 @@
 #   scripts/cycles_draws.sh OUT DATA0 [DATA1 ...]
 # MODEL (default the extension's models/cycles.affw) is the model scored (Blender's denoiser
 # comes with every Cycles run of the benchmark). Per draw k: the
-# benchmark's results in OUT/draw<k>/ and ColorVideoVDP's in OUT/draw<k>/cvvdp.csv (the frames
+# benchmark's CSVs in OUT/draw<k>/ and ColorVideoVDP's in OUT/draw<k>/cvvdp.csv (the frames
 # in a scratch folder, removed); then the table over draws, OUT/draws.md
 # (scripts/cycles_draws_table.py). Needs the benchmark's .venv and the .venv-cvvdp of
 # scripts/setup_cvvdp.sh. About 5 minutes a draw on 2 cores.
@@ -47,6 +47,9 @@ for data in "$@"; do
   quietly "$scratch/cvvdp$k.log" "$root/.venv-cvvdp/bin/python" "$root/scripts/cvvdp_score.py" "$scratch/draw$k" \
     --out "$draw/cvvdp.csv"
   rm -rf "$scratch/draw$k"
+  # The CSVs carry every figure; the charts and pages of each draw are the suite's own kind
+  # (results/bench_cycles holds draw 0's).
+  find "$draw" -maxdepth 1 -type f ! -name '*.csv' -delete
   k=$((k + 1))
 done
 "$root/.venv/bin/python" "$root/scripts/cycles_draws_table.py" "$out" --command "scripts/cycles_draws.sh $out $*"
