@@ -173,8 +173,11 @@ FrameResult AffinityModelImpl::forwardFrame(const FrameInput& frame, RecurrentSt
     }
     const KernelParams& last = result.kernels.back();
     if (history) {
+        // The model's temporal gain scales what every valid tap gives (docs/MODEL.md section 7).
+        const torch::Tensor tapScale =
+            config_.temporalGainPercent == 100 ? validMask : validMask * (config_.temporalGainPercent / 100.0);
         const TemporalTaps temporal{result.temporalBandwidth, warpCatmullRom(state.output, motion),
-                                    warpBilinear(state.features, motion), validMask};
+                                    warpBilinear(state.features, motion), tapScale};
         filtered = affinityFilterTemporal(filtered, last, config_.kernelSize, 1 << (K - 1), temporal);
     } else {
         filtered = affinityFilter(filtered, last, config_.kernelSize, 1 << (K - 1));

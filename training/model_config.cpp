@@ -6,6 +6,7 @@
 #include "affinity/error.h"
 #include "affinity/features.h"
 #include "affinity/weights.h"
+#include "network/network.h"
 
 namespace affinity::train {
 namespace {
@@ -173,6 +174,12 @@ ModelConfig configFromWeights(const Weights& weights) {
         return value == 1;
     };
     config.lightRestoration = flag("config.light_restoration");
+    if (weights.has("config.temporal_gain_percent")) {
+        config.temporalGainPercent = readConfigInt(weights, "config.temporal_gain_percent");
+        if (config.temporalGainPercent < 1 || config.temporalGainPercent > kMaxTemporalGainPercent)
+            throw Error(source + ": config.temporal_gain_percent is " + str(config.temporalGainPercent) +
+                        ", expected 1.." + str(kMaxTemporalGainPercent));
+    }
     // Switches of variants that lost and were removed (docs/TRAINING.md, "Tried and lost"): a file
     // that turns one on is refused rather than trained or exported as a different model.
     for (const auto& [name, what] : {std::pair<const char*, const char*>{"config.source_weights", "source weights"},

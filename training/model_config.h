@@ -29,6 +29,9 @@ struct ModelConfig {
     // Not part of the network: whether the core restores light after the kernels (docs/MODEL.md
     // section 10). Kept from the weights a training starts from, written back on export.
     bool lightRestoration = false;
+    // The temporal taps' weights times this / 100 (docs/MODEL.md section 7; config.temporal_gain_percent,
+    // absent: 100). Part of the network: training applies it too, and keeps it on export.
+    int temporalGainPercent = 100;
 
     int embeddingChannels() const { return embedWidths.empty() ? 0 : embedWidths.back(); }
     // Channels the moving average accumulates and the kernels filter: RGB radiance.

@@ -6,6 +6,7 @@
 
 #include "affinity/error.h"
 #include "model_config.h"
+#include "network/network.h"
 
 namespace affinity::train {
 
@@ -178,6 +179,24 @@ std::vector<NamedTensor> withKernelAdded(const Weights& trained, double bandwidt
                 grown.push_back(head.floats[std::size_t(row.from) * perRow + i] * row.scale);
         head.floats = std::move(grown);
         head.shape[0] = after.headChannels();
+    }
+    return tensors;
+}
+
+std::vector<NamedTensor> withTemporalGain(const Weights& trained, int percent) {
+    if (percent < 1 || percent > kMaxTemporalGainPercent)
+        throw Error("temporal gain " + std::to_string(percent) + " % is outside 1.." +
+                    std::to_string(kMaxTemporalGainPercent));
+    std::vector<NamedTensor> tensors;
+    for (NamedTensor& tensor : copiesOf(trained))
+        if (tensor.name != "config.temporal_gain_percent") tensors.push_back(std::move(tensor));
+    if (percent != 100) {
+        NamedTensor gain;
+        gain.name = "config.temporal_gain_percent";
+        gain.dtype = DType::Int32;
+        gain.shape = {1};
+        gain.ints = {percent};
+        tensors.push_back(std::move(gain));
     }
     return tensors;
 }

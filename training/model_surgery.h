@@ -31,4 +31,9 @@ std::vector<NamedTensor> withKernelAdded(const Weights& trained, double bandwidt
 // the switch is a property of the file, not a change of the network.
 std::vector<NamedTensor> withLightRestoration(const Weights& trained, bool on);
 
+// The same weights with config.temporal_gain_percent set to `percent` (docs/MODEL.md sections 7-8;
+// 100: the tensor left out, as in files written before it existed). Throws affinity::Error for a
+// percent outside 1..kMaxTemporalGainPercent.
+std::vector<NamedTensor> withTemporalGain(const Weights& trained, int percent);
+
 }  // namespace affinity::train

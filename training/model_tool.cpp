@@ -6,6 +6,8 @@
 //   affinity_model_tool widen --preset NAME --seed N IN.affw OUT.affw
 //   affinity_model_tool add-kernel [--bandwidth-scale S] IN.affw OUT.affw
 //   affinity_model_tool light-restoration on|off IN.affw OUT.affw
+//   affinity_model_tool temporal-gain PERCENT IN.affw OUT.affw
+#include <algorithm>
 #include <cstdint>
 #include <cstdio>
 #include <iostream>
@@ -16,6 +18,7 @@
 #include "affinity/weights.h"
 #include "model_config.h"
 #include "model_surgery.h"
+#include "network/network.h"
 #include "torch_reference.h"
 
 namespace affinity::train {
@@ -29,7 +32,9 @@ constexpr const char* kUsage =
     "       affinity_model_tool add-kernel [--bandwidth-scale S] IN.affw OUT.affw   (one more dilated kernel,\n"
     "           the last and widest; it starts as a copy of the old last one, bandwidth x S, default 2)\n"
     "       affinity_model_tool light-restoration on|off IN.affw OUT.affw   (whether denoising restores the\n"
-    "           input's light after the kernels, docs/MODEL.md section 10; the weights unchanged)\n";
+    "           input's light after the kernels, docs/MODEL.md section 10; the weights unchanged)\n"
+    "       affinity_model_tool temporal-gain PERCENT IN.affw OUT.affw   (the temporal taps' weights times\n"
+    "           PERCENT / 100, docs/MODEL.md section 7; 100 leaves the file as trained)\n";
 
 std::string joined(const std::vector<int>& widths) {
     std::string text;
@@ -91,6 +96,7 @@ int runDescribe(const std::vector<std::string>& args) {
     std::cout << "  kernels        K = " << config.kernels << ", F = " << config.affinityFeatures
               << ", T = " << config.kernelSize << " (head P = " << config.headChannels() << ")\n";
     std::cout << "  light restoration " << (config.lightRestoration ? "on" : "off") << "\n";
+    std::cout << "  temporal gain  " << config.temporalGainPercent << " %\n";
     std::cout << "  parameters     " << parameterCount(config) << "\n";
     const FlopCount flops = flopCount(config);
     char line[256];
@@ -177,6 +183,17 @@ int runLightRestoration(const std::vector<std::string>& args) {
     return 0;
 }
 
+int runTemporalGain(const std::vector<std::string>& args) {
+    if (args.size() != 3) throw Error("temporal-gain: expected PERCENT IN.affw OUT.affw");
+    // Anything above the largest gain reads as one past it, which withTemporalGain refuses.
+    const int percent = int(std::min<std::uint64_t>(nonNegativeInteger("temporal-gain: PERCENT", args[0]),
+                                                    std::uint64_t(kMaxTemporalGainPercent) + 1));
+    if (args[1] == args[2]) throw Error("temporal-gain: the output must not overwrite the input");
+    writeWeightsFile(args[2], withTemporalGain(Weights::fromFile(args[1]), percent));
+    std::cout << "wrote " << args[2] << ": " << args[1] << " with temporal gain " << percent << " %\n";
+    return 0;
+}
+
 }  // namespace
 }  // namespace affinity::train
 
@@ -193,6 +210,7 @@ int main(int argc, char** argv) {
         if (args[0] == "widen") return affinity::train::runWiden(rest);
         if (args[0] == "add-kernel") return affinity::train::runAddKernel(rest);
         if (args[0] == "light-restoration") return affinity::train::runLightRestoration(rest);
+        if (args[0] == "temporal-gain") return affinity::train::runTemporalGain(rest);
         std::cerr << "affinity_model_tool: unknown command '" << args[0] << "'\n" << affinity::train::kUsage;
         return 2;
     } catch (const affinity::Error& error) {

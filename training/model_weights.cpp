@@ -27,6 +27,7 @@ std::vector<NamedTensor> modelTensors(const AffinityModel& model) {
     integer("config.affinity_features", config.affinityFeatures);
     integer("config.kernel_size", config.kernelSize);
     if (config.lightRestoration) integer("config.light_restoration", 1);
+    if (config.temporalGainPercent != 100) integer("config.temporal_gain_percent", config.temporalGainPercent);
     return tensors;
 }
 

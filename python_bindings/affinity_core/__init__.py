@@ -161,13 +161,14 @@ class Denoiser:
     last kernel has no taps into the previous output), "one_kernel" (only the last, widest
     kernel filters), "no_light_restoration" (the kernels' output without the coarse light
     restoration after them), "no_input_fallback" (without the move back toward the noisy input
-    where the output departs from it by more than its noise explains) or "no_peak_guard" (without
-    the cap on lone output pixels far above their neighbours and the input around them). None
-    runs the whole pipeline.
+    where the output departs from it by more than its noise explains), "no_peak_guard" (without
+    the cap on lone output pixels far above their neighbours and the input around them) or
+    "no_history_guard" (the temporal taps also take previous output far brighter than anything
+    the frame shows at the pixel). None runs the whole pipeline.
     """
 
     ABLATIONS = ("single_frame", "no_temporal_kernel", "one_kernel", "no_light_restoration", "no_input_fallback",
-                 "no_peak_guard")
+                 "no_peak_guard", "no_history_guard")
 
     def __init__(
         self,
@@ -191,6 +192,7 @@ class Denoiser:
             light_restoration=ablation != "no_light_restoration",
             input_fallback=ablation != "no_input_fallback",
             peak_guard=ablation != "no_peak_guard",
+            history_guard=ablation != "no_history_guard",
         )
         #: What the last call did: invalid_radiance (NaN/Inf/negative values read as 0),
         #: used_history, reset_reason, exposure (the factor on the radiance the network saw, set by

@@ -378,17 +378,17 @@ PYBIND11_MODULE(_core, m) {
 
     py::class_<Denoiser>(m, "Denoiser", "Stateful sequence denoiser (see affinity_core.Denoiser).")
         .def(py::init([](Model model, bool useHistory, bool temporalKernel, bool allKernels, bool lightRestoration,
-                         bool inputFallback, bool peakGuard) {
+                         bool inputFallback, bool peakGuard, bool historyGuard) {
                  // The benchmark's ablations (affinity_core.Denoiser(ablation=...)): internal to the library.
                  Denoiser denoiser = ablatedDenoiser(
-                     std::move(model),
-                     Ablation{useHistory, temporalKernel, allKernels, lightRestoration, inputFallback, peakGuard});
+                     std::move(model), Ablation{useHistory, temporalKernel, allKernels, lightRestoration, inputFallback,
+                                                peakGuard, historyGuard});
                  denoiser.setInterruptCheck(pythonSignalRaised);
                  return denoiser;
              }),
              py::arg("model"), py::kw_only(), py::arg("use_history") = true, py::arg("temporal_kernel") = true,
              py::arg("all_kernels") = true, py::arg("light_restoration") = true, py::arg("input_fallback") = true,
-             py::arg("peak_guard") = true)
+             py::arg("peak_guard") = true, py::arg("history_guard") = true)
         .def(
             "denoise",
             [](Denoiser& self, const py::dict& frame) {

@@ -11,6 +11,7 @@
 #include <cstring>
 #include <limits>
 #include <random>
+#include <utility>
 #include <vector>
 
 #include "affinity/error.h"
@@ -79,8 +80,15 @@ double squaredDistance(const FeatureMap& a, int ay, int ax, const FeatureMap& b,
     return sum;
 }
 
-// docs/MODEL.md sections 6 and 7, literally, in double precision.
-FeatureMap reference(const Scene& s, int tapSize, int dilation, bool temporal) {
+double luminanceOf(const FeatureMap& map, int y, int x) {
+    const float* rgb = map.pixel(y, x);
+    return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2];
+}
+
+// docs/MODEL.md sections 6 and 7, literally, in double precision; with guardRatio > 0 the
+// bright-history guard of section 10 too.
+FeatureMap reference(const Scene& s, int tapSize, int dilation, bool temporal, double guardRatio = 0.0,
+                     double guardFloor = 0.0) {
     const int height = s.radiance.height(), width = s.radiance.width(), radius = tapSize / 2;
     const int channels = s.radiance.channels();
     FeatureMap out(height, width, channels);
@@ -106,6 +114,9 @@ FeatureMap reference(const Scene& s, int tapSize, int dilation, bool temporal) {
                     for (int i = -1; i <= 1; ++i) {
                         const int qx = x + i, qy = y + j;
                         if (qx < 0 || qy < 0 || qx >= width || qy >= height) continue;
+                        if (guardRatio > 0.0 && luminanceOf(s.warpedOutput, qy, qx) >
+                                                    guardRatio * (luminanceOf(s.radiance, y, x) + guardFloor))
+                            continue;
                         const double w = s.warpedValid.pixel(qy, qx)[0] *
                                          std::exp(-b * b * squaredDistance(s.features, y, x, s.warpedFeatures, qy, qx));
                         for (int c = 0; c < channels; ++c) sum[std::size_t(c)] += w * s.warpedOutput.pixel(qy, qx)[c];
@@ -422,6 +433,49 @@ FeatureMap ringOf(const FeatureMap& map, int rows, int begin, int end) {
     return ring;
 }
 
+// The bright-history guard (docs/MODEL.md section 10): history up to 100x brighter than the
+// filtered signal, so that many taps exceed the bound and many do not.
+TEST(AffinityFilter, BrightHistoryGuardMatchesDoubleReference) {
+    std::mt19937 rng(31);
+    const int height = 23, width = 41, tapSize = 5, dilation = 2;
+    Scene s = randomScene(height, width, 8, rng);
+    s.warpedOutput = randomMap(height, width, 3, 0.01f, 100.0f, rng);
+    const float ratio = 8.0f, floor = 0.5f;
+    const TemporalTaps guarded{&s.temporalBandwidth, &s.warpedOutput, &s.warpedFeatures, &s.warpedValid, ratio, floor};
+    FeatureMap out(height, width, 3);
+    affinityFilterRows(s.radiance, s.kernel(), tapSize, dilation, &guarded, height, 0, height, out);
+    EXPECT_LT(maxRelativeDifference(out, reference(s, tapSize, dilation, true, ratio, floor)), 1e-5);
+    // The guard took history away from some pixels and not from others.
+    const FeatureMap unguarded = run(s, tapSize, dilation, true);
+    int changed = 0;
+    for (int y = 0; y < height; ++y)
+        for (int x = 0; x < width; ++x) changed += std::fabs(out.pixel(y, x)[0] - unguarded.pixel(y, x)[0]) > 1e-3f;
+    EXPECT_GT(changed, height * width / 10);
+    EXPECT_LT(changed, height * width);
+}
+
+// A dark pixel beside a lamp's previous output: the guard keeps the pixel's own history and drops
+// the lamp's.
+TEST(AffinityFilter, BrightHistoryGuardDropsALampsHistoryBesideADarkPixel) {
+    const int height = 3, width = 3;
+    Scene s;
+    s.radiance = constantMap(height, width, 3, 0.1f);
+    s.features = constantMap(height, width, 4, 0.5f);
+    s.bandwidth = constantMap(height, width, 1, 1.0f);
+    s.centre = constantMap(height, width, 1, 1.0f);
+    s.temporalBandwidth = constantMap(height, width, 1, 1.0f);
+    s.warpedOutput = constantMap(height, width, 3, 0.1f);
+    for (int x = 0; x < width; ++x) std::fill_n(s.warpedOutput.pixel(0, x), 3, 50.0f);  // the lamp, a row above
+    s.warpedFeatures = constantMap(height, width, 4, 0.5f);
+    s.warpedValid = constantMap(height, width, 1, 1.0f);
+    const TemporalTaps guarded{&s.temporalBandwidth, &s.warpedOutput, &s.warpedFeatures, &s.warpedValid, 8.0f, 0.1f};
+    FeatureMap out(height, width, 3);
+    affinityFilterRows(s.radiance, s.kernel(), 3, 1, &guarded, height, 0, height, out);
+    EXPECT_NEAR(out.pixel(1, 1)[0], 0.1f, 1e-6f);                           // 8 x (0.1 + 0.1) = 1.6 < 50
+    EXPECT_NEAR(run(s, 3, 1, true).pixel(1, 1)[0], 151.5f / 18.0f, 1e-4f);  // unguarded: (3 x 50 + 15 x 0.1) / 18
+    EXPECT_NEAR(out.pixel(0, 1)[0], 0.1f, 1e-6f);  // the lamp's row: dark now, its history dropped
+}
+
 TEST(AffinityFilter, BandsThroughRingsEqualTheWholeImage) {
     std::mt19937 rng(21);
     const int height = 37, width = 29, band = 5, tapSize = 5, dilation = 2;
@@ -490,6 +544,13 @@ TEST(AffinityFilter, RejectsInconsistentInputs) {
     EXPECT_THROW(affinityFilterTemporal(s.radiance, s.kernel(), 5, 1, s.temporalBandwidth, sixChannels,
                                         s.warpedFeatures, s.warpedValid, out),
                  Error);
+    // The bright-history guard's bound must be a finite, non-negative ratio and floor.
+    FeatureMap rows(8, 9, 3);
+    for (const auto& [ratio, floor] :
+         {std::pair{-1.0f, 0.0f}, std::pair{8.0f, -0.1f}, std::pair{std::numeric_limits<float>::infinity(), 0.0f}}) {
+        const TemporalTaps taps{&s.temporalBandwidth, &s.warpedOutput, &s.warpedFeatures, &s.warpedValid, ratio, floor};
+        EXPECT_THROW(affinityFilterRows(s.radiance, s.kernel(), 5, 1, &taps, 8, 0, 8, rows), Error);
+    }
 }
 
 // Warping.

@@ -14,6 +14,7 @@
 #include "affinity_ops.h"
 #include "kernels/catmull_rom_warp.h"
 #include "model_config.h"
+#include "network/network.h"
 #include "model_surgery.h"
 #include "model_weights.h"
 #include "network_denoiser.h"
@@ -166,6 +167,45 @@ TEST(Parity, EveryPresetAtInitialisation) {
 
 TEST(Parity, TheShippedDefaultModel) {
     expectParity(std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw", test::randomSequence(3, 16, 16, 4, 5));
+}
+
+// A temporal gain (docs/MODEL.md section 7) is part of the network: the trainer and the core
+// compute the same with it, it changes what the history gives, and a training exports it again.
+TEST(Parity, ATemporalGain) {
+    const std::string original = std::string(AFFINITY_SOURCE_DIR) + "/core/models/default.affw";
+    const std::string gained = temporaryPath("default_gain250.affw");
+    const Weights trained = Weights::fromFile(original);
+    train::writeWeightsFile(gained, train::withTemporalGain(trained, 250));
+    EXPECT_EQ(train::configFromWeights(Weights::fromFile(gained)).temporalGainPercent, 250);
+    const std::vector<SampleFrame> frames = test::randomSequence(3, 29, 23, 4, 31);
+    expectParity(gained, frames);
+
+    Denoiser plain(Model::fromFile(original, Precision::Float32)), more(Model::fromFile(gained, Precision::Float32));
+    std::vector<float> a, b;
+    for (const SampleFrame& frame : frames) a = plain.denoise(frame), b = more.denoise(frame);
+    EXPECT_GT(maxRelativeDifference(b, a), 1e-3);  // the last frame leans more on its history
+
+    const std::vector<std::uint8_t> exported =
+        train::serializeWeights(train::modelTensors(train::modelFromWeights(Weights::fromFile(gained))));
+    EXPECT_EQ(Weights::fromMemory(exported.data(), exported.size(), "exported").integer("config.temporal_gain_percent"),
+              250);
+    // 100 is the file as trained: the tensor left out.
+    const auto back = train::serializeWeights(train::withTemporalGain(Weights::fromFile(gained), 100));
+    EXPECT_FALSE(Weights::fromMemory(back.data(), back.size(), "back").has("config.temporal_gain_percent"));
+    EXPECT_THROW(train::withTemporalGain(trained, 0), Error);
+    EXPECT_THROW(train::withTemporalGain(trained, kMaxTemporalGainPercent + 1), Error);
+    // The core refuses a gain out of range, naming it.
+    std::vector<train::NamedTensor> zero = train::withTemporalGain(trained, 250);
+    for (train::NamedTensor& tensor : zero)
+        if (tensor.name == "config.temporal_gain_percent") tensor.ints = {0};
+    const auto zeroBytes = train::serializeWeights(zero);
+    try {
+        Model::fromWeights(Weights::fromMemory(zeroBytes.data(), zeroBytes.size(), "zero gain"));
+        ADD_FAILURE() << "a temporal gain of 0 % was accepted";
+    } catch (const Error& error) {
+        EXPECT_NE(std::string(error.what()).find("config.temporal_gain_percent"), std::string::npos) << error.what();
+    }
+    std::filesystem::remove(gained);
 }
 
 // The light restoration's switch (docs/MODEL.md section 10) changes no tensor of the network,

@@ -47,7 +47,7 @@ def test_every_method_ran_and_every_metric_is_finite(bench: tuple[pathlib.Path, 
     methods = {row["method"] for row in rows}
     expected = {"noisy", "oidn", "svgf", "ours-small", "ours-small+preroll", "ours-tiny", "ours-tiny+preroll",
                 "small-single_frame", "small-no_temporal_kernel", "small-one_kernel", "small-no_input_fallback",
-                "small-no_peak_guard"}
+                "small-no_peak_guard", "small-no_history_guard"}
     # The ladder's other rungs run by default wherever their weights are in the checkout.
     models = pathlib.Path(__file__).resolve().parents[2] / "core" / "models"
     expected |= {"ours-medium", "ours-medium+preroll"} if (models / "medium.affw").is_file() else set()

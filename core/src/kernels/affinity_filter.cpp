@@ -170,6 +170,10 @@ void checkInputs(const FeatureMap& radiance, const KernelParams& kernel, int tap
         checkMap(*temporal->output, "the warped output", imageHeight, ringRows, width, channels);
         checkMap(*temporal->features, "the warped features", imageHeight, ringRows, width, features);
         checkMap(*temporal->valid, "the warped validity", imageHeight, ringRows, width, 1);
+        if (!(temporal->guardRatio >= 0.0f) || !(temporal->guardFloor >= 0.0f) ||
+            !std::isfinite(temporal->guardRatio) || !std::isfinite(temporal->guardFloor))
+            throw Error("affinity filter: the bright-history guard's ratio " + std::to_string(temporal->guardRatio) +
+                        " and floor " + std::to_string(temporal->guardFloor) + " must be finite and not negative");
     }
 }
 
@@ -254,6 +258,8 @@ void runFilterRows(const FeatureMap& radiance, const KernelParams& kernel, int t
                     temporalTaps[j] = tapY >= 0 && tapY < imageHeight ? temporalCache->row(tapY) : nullptr;
                 }
                 in.temporalStride = temporalCache->stride();
+                in.guardRatio = temporal->guardRatio;
+                in.guardFloor = temporal->guardFloor;
                 in.temporalRows = temporalTaps;
             }
             filterRowFunctionFor(in, output.pixel(y % output.height(), 0));

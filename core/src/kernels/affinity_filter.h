@@ -20,6 +20,11 @@ struct TemporalTaps {
     const FeatureMap* output;     // the warped previous output, as many channels as the signal
     const FeatureMap* features;   // the warped previous features, F channels
     const FeatureMap* valid;      // the warped validity, 1 channel
+    // The bright-history guard (pipeline/history_guard.h): a tap whose warped output's luminance
+    // exceeds guardRatio x (the centre's luminance in the filtered signal + guardFloor) gives no
+    // weight. guardRatio 0: no guard.
+    float guardRatio = 0.0f;
+    float guardFloor = 0.0f;
 };
 
 // One dilated spatial pass: output = normalised affinity-weighted sum of `radiance`, the
@@ -30,7 +35,7 @@ void affinityFilter(const FeatureMap& radiance, const KernelParams& kernel, int 
 
 // The last pass: the spatial taps as above plus 3x3 temporal taps on the warped previous
 // output (as many channels as `radiance`), weighted by
-// exp(-b^2 ||f(p) - warpedFeatures(q)||^2) * warpedValid(q).
+// exp(-b^2 ||f(p) - warpedFeatures(q)||^2) * warpedValid(q) (no bright-history guard).
 void affinityFilterTemporal(const FeatureMap& radiance, const KernelParams& kernel, int tapSize, int dilation,
                             const FeatureMap& temporalBandwidth, const FeatureMap& warpedOutput,
                             const FeatureMap& warpedFeatures, const FeatureMap& warpedValid, FeatureMap& output);

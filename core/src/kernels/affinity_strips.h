@@ -7,9 +7,11 @@
 #include <algorithm>
 #include <cstddef>
 #include <cstring>
+#include <limits>
 #include <utility>
 
 #include "kernels/fast_exp.h"
+#include "kernels/luminance.h"
 
 namespace affinity {
 
@@ -24,6 +26,8 @@ struct FilterRowInputs {
     int dilation;
     std::size_t temporalStride;        // of the temporal rows
     const float* const* temporalRows;  // rows y-1, y, y+1: warped features, output, validity
+    float guardRatio;                  // the bright-history guard (affinity_filter.h); 0: none
+    float guardFloor;
 };
 
 using FilterRowFunction = void (*)(const FilterRowInputs&, float*);
@@ -76,6 +80,13 @@ VecF<L> squaredDistance(const float* centre, const float* neighbour, std::size_t
     return (partial[0] + partial[1]) + (partial[2] + partial[3]);
 }
 
+// Rec. 709 luminance (kernels/luminance.h) of the L pixels whose R, G and B planes start at `rgb`,
+// `stride` apart.
+template <int L>
+VecF<L> luminanceLanes(const float* rgb, std::size_t stride) {
+    return kLumaR * loadLanes<L>(rgb) + kLumaG * loadLanes<L>(rgb + stride) + kLumaB * loadLanes<L>(rgb + 2 * stride);
+}
+
 // The weighted sums of one vector of L pixels.
 template <int L, int kChannels>
 struct VectorSums {
@@ -85,15 +96,15 @@ struct VectorSums {
 // Adds one tap, the neighbour at the same offset for every lane: `neighbour` points at the
 // features of the first lane's neighbour, `column` is that neighbour's image column, `signal`
 // its kChannels filtered values; `scale` (null for none: the spatial taps) multiplies each
-// weight: the validity of a temporal tap.
+// weight: what a temporal tap may give (its validity, and the bright-history guard).
 // kCheckColumns: some neighbours may lie outside the image horizontally and are masked out.
 template <int L, int kFeatures, int kChannels, bool kCheckColumns>
 void addTap(VectorSums<L, kChannels>& sums, VecF<L> negativeBandwidthSquared, const float* centre,
             std::size_t centreStride, const float* neighbour, std::size_t neighbourStride, const float* signal,
-            const float* scale, int features, int column, int width) {
+            const VecF<L>* scale, int features, int column, int width) {
     const VecF<L> distance = squaredDistance<L, kFeatures>(centre, neighbour, centreStride, neighbourStride, features);
     VecF<L> weight = fastExpNonPositiveLanes<L>(negativeBandwidthSquared * distance);
-    if (scale != nullptr) weight *= loadLanes<L>(scale);
+    if (scale != nullptr) weight *= *scale;
     if constexpr (kCheckColumns) {
         const VecI<L> columns = laneIndices<L>() + column;
         weight = ((columns >= 0) & (columns < width)) ? weight : VecF<L>{};
@@ -142,6 +153,10 @@ void filterStrip(const FilterRowInputs& in, int x, float* output) {
             const std::size_t temporalStride = in.temporalStride;
             const VecF<L> b = loadLanes<L>(centre + (features + kChannels + 2) * stride);
             const VecF<L> negativeTemporalSquared = -(b * b);
+            // The brightest warped output a tap may have (the guard off: every value passes).
+            const VecF<L> brightest = in.guardRatio > 0.0f
+                                          ? in.guardRatio * (luminanceLanes<L>(centreSignal, stride) + in.guardFloor)
+                                          : VecF<L>{} + std::numeric_limits<float>::infinity();
             for (int j = 0; j < 3; ++j) {
                 const float* tapRow = in.temporalRows[j];
                 if (tapRow == nullptr) continue;
@@ -149,9 +164,12 @@ void filterStrip(const FilterRowInputs& in, int x, float* output) {
                     const int column = at + i;
                     const float* neighbour = tapRow + column;
                     const float* warpedOutput = neighbour + features * temporalStride;
-                    addTap<L, kFeatures, kChannels, kCheckColumns>(
-                        sums, negativeTemporalSquared, centre, stride, neighbour, temporalStride, warpedOutput,
-                        warpedOutput + kChannels * temporalStride, features, column, in.width);
+                    const VecF<L> validity = loadLanes<L>(warpedOutput + kChannels * temporalStride);
+                    const VecF<L> scale =
+                        luminanceLanes<L>(warpedOutput, temporalStride) <= brightest ? validity : VecF<L>{};
+                    addTap<L, kFeatures, kChannels, kCheckColumns>(sums, negativeTemporalSquared, centre, stride,
+                                                                   neighbour, temporalStride, warpedOutput, &scale,
+                                                                   features, column, in.width);
                 }
             }
         }

@@ -134,6 +134,8 @@ Network buildNetwork(const Weights& weights, Precision precision) {
     n.tapSize = b.config("config.kernel_size", 1, 15);
     if (n.tapSize % 2 == 0) b.fail("config.kernel_size must be odd");
     n.lightRestoration = b.flag("config.light_restoration");
+    if (weights.has("config.temporal_gain_percent"))
+        n.temporalGain = float(b.config("config.temporal_gain_percent", 1, kMaxTemporalGainPercent)) / 100.0f;
     b.removedFlag("config.source_weights", "source weights");
     b.removedFlag("config.emission_lambda", "a separate emission lambda");
     b.removedFlag("config.albedo_demodulation", "albedo demodulation");

@@ -13,6 +13,9 @@ namespace affinity {
 
 class Weights;
 
+// The largest config.temporal_gain_percent a weights file may set.
+inline constexpr int kMaxTemporalGainPercent = 10000;
+
 struct Network {
     std::string source;
     std::optional<Embedding> embedding;
@@ -25,6 +28,10 @@ struct Network {
     // Whether the Denoiser restores light after the kernels (config.light_restoration, docs/MODEL.md
     // sections 8 and 10): a property of the trained weights, set where it was measured to help.
     bool lightRestoration = false;
+    // What each valid temporal tap's weight is multiplied by (config.temporal_gain_percent / 100,
+    // docs/MODEL.md sections 7-8): how far the last kernel trusts the previous output against the
+    // frame's own; 1 where the file does not set it.
+    float temporalGain = 1.0f;
     std::int64_t parameterCount = 0;
     Precision precision = Precision::Float32;  // of the products (affinity/precision.h), never Auto
 

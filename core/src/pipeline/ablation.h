@@ -14,6 +14,7 @@ struct Ablation {
     bool lightRestoration = true;  // false: the kernels' output as it is (light_restoration.h)
     bool inputFallback = true;     // false: no move back toward the noisy input (input_fallback.h)
     bool peakGuard = true;         // false: no cap on lone unsupported peaks (peak_guard.h)
+    bool historyGuard = true;      // false: the temporal taps take bright history too (history_guard.h)
 };
 
 // A Denoiser of `model` with the parts `ablation` switches off.

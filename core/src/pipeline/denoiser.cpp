@@ -209,7 +209,7 @@ std::vector<float> Denoiser::State::denoiseEmbedded(EmbeddedFrame frame, const F
     UnetTail tail = stages.unet(frame.embedding, accumulated.embedding);
     clock.mark("u-net");
     // 5-7. Kernel parameters, accumulation and kernels, band by band.
-    const KernelChoice kernels{useHistory && ablation.temporalKernel, ablation.allKernels};
+    const KernelChoice kernels{useHistory && ablation.temporalKernel, ablation.allKernels, ablation.historyGuard};
     stages.filterInBands(tail, frame.embedding, frame.signal, accumulated, motion, valid, kernels, history, clock);
     stages.give(tail);
     pool.give(frame.embedding);

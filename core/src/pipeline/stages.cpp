@@ -10,6 +10,7 @@
 #include "kernels/fast_exp.h"
 #include "network/filter_signal.h"
 #include "pipeline/band_schedule.h"
+#include "pipeline/history_guard.h"
 
 namespace affinity {
 
@@ -294,7 +295,12 @@ void Stages::filterInBands(const UnetTail& tail, const FeatureMap& embedding, co
         warpedValid = pool_.take(ringRows, width, 1);
     }
     int warpedEnd = 0;
-    const TemporalTaps taps{&params.temporalBandwidth, &warpedOutput, &warpedFeatures, &warpedValid};
+    const TemporalTaps taps{&params.temporalBandwidth,
+                            &warpedOutput,
+                            &warpedFeatures,
+                            &warpedValid,
+                            temporal && choice.historyGuard ? kHistoryGuardRatio : 0.0f,
+                            temporal && choice.historyGuard ? historyGuardFloor(signal) : 0.0f};
 
     double parameterMs = 0.0, spatialMs = 0.0, temporalMs = 0.0;
     for (const BandStep& step : bandSchedule(height, kBandRows, radii)) {
@@ -316,9 +322,11 @@ void Stages::filterInBands(const UnetTail& tail, const FeatureMap& embedding, co
                 const int warpTo = std::min(height, end + 1);
                 warpBilinearRows(lastFeatures, motion, warpedEnd, warpTo, warpedFeatures);
                 warpCatmullRomRows(output, motion, warpedEnd, warpTo, warpedOutput);
+                // The model's temporal gain scales what every valid tap gives (docs/MODEL.md section 7).
                 for (int y = warpedEnd; y < warpTo; ++y)
-                    std::copy(valid + std::size_t(y) * width, valid + std::size_t(y + 1) * width,
-                              warpedValid.pixel(y % ringRows, 0));
+                    std::transform(valid + std::size_t(y) * width, valid + std::size_t(y + 1) * width,
+                                   warpedValid.pixel(y % ringRows, 0),
+                                   [gain = net.temporalGain](float v) { return v * gain; });
                 warpedEnd = warpTo;
                 affinityFilterRows(in, params.kernel(k), net.tapSize, 1 << k, &taps, height, begin, end, out);
             } else {

@@ -68,8 +68,9 @@ struct UnetTail {
 
 // Which of the kernels run (all as trained, unless an ablation switched some off).
 struct KernelChoice {
-    bool temporal = true;    // the last kernel's taps into the previous output (needs history)
-    bool allKernels = true;  // false: the last (widest) kernel alone
+    bool temporal = true;      // the last kernel's taps into the previous output (needs history)
+    bool allKernels = true;    // false: the last (widest) kernel alone
+    bool historyGuard = true;  // the temporal taps' bright-history guard (history_guard.h)
 };
 
 struct KernelMaps;
