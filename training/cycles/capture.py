@@ -160,19 +160,11 @@ def capture_input_draw(scene: Any, folder: str, reference_folder: str, draw: int
     references, which no input seed changes, are taken from there. One draw of 8 frames scores a
     denoiser by the luck of its samples as much as by its skill; several draws of the same scene
     tell the two apart (docs/CYCLES_DATA.md, "Draws"). Returns the summary, also written."""
-    import affinity_core
-
     summary = _read_summary(reference_folder, settings.spp)
     if int(scene.cycles.seed) != summary["seed"] + draw * INPUT_DRAW_SEED_STRIDE:
         raise ValueError(f"the scene's seed {scene.cycles.seed} is not draw {draw} of {reference_folder}'s "
                          f"seed {summary['seed']}")
-    _start_folder(folder)
-    run, input_seconds = _capture_inputs(scene, folder, settings, progress)
-    if len(run.results) != summary["frames"]:
-        raise ValueError(f"{reference_folder} has {summary['frames']} frames, the scene {len(run.results)}")
-    for index, result in enumerate(run.results):
-        old = affinity_core.read_frame(os.path.join(reference_folder, affinity_core.frame_file_name(index)))
-        _write_frame(folder, index, result, old["reference"], old["info"]["reference_spp"])
+    run, input_seconds = _capture_with_references(scene, folder, reference_folder, summary, settings, progress)
     _copy_extras(reference_folder, folder, ("reference_halves.npz",))
     summary.update(_input_summary(), input_draw=draw, input_seed=int(scene.cycles.seed),
                    references_from=os.path.abspath(reference_folder))
@@ -202,16 +194,8 @@ def refresh_inputs(scene: Any, folder: str, old_folder: str, settings: CaptureSe
     ``old_folder``, a complete sequence of the same scene from an older capture path: the
     targets and Blender's own denoiser do not depend on the capture, and cost most of the time.
     Returns the updated summary, also written to render_summary.json."""
-    import affinity_core
-
     summary = _read_summary(old_folder, settings.spp)
-    _start_folder(folder)
-    run, input_seconds = _capture_inputs(scene, folder, settings, progress)
-    if len(run.results) != summary["frames"]:
-        raise ValueError(f"{old_folder} has {summary['frames']} frames, the scene {len(run.results)}")
-    for index, result in enumerate(run.results):
-        old = affinity_core.read_frame(os.path.join(old_folder, affinity_core.frame_file_name(index)))
-        _write_frame(folder, index, result, old["reference"], old["info"]["reference_spp"])
+    run, input_seconds = _capture_with_references(scene, folder, old_folder, summary, settings, progress)
     _copy_extras(old_folder, folder, ("blender_oidn.npz", "reference_halves.npz"))
     summary.update(_input_summary())
     summary["seconds"].update({"input": input_seconds, **_input_seconds(run)})
@@ -296,6 +280,24 @@ def _capture_preroll(scene: Any, folder: str, settings: CaptureSettings, summary
     os.replace(temporary, os.path.join(folder, "preroll.npz"))
     summary["preroll_frames"] = settings.preroll_frames
     summary["seconds"]["preroll"] = seconds
+
+
+def _capture_with_references(scene: Any, folder: str, source: str, summary: dict[str, Any],
+                             settings: CaptureSettings, progress: Callable[[str], None]
+                             ) -> tuple[pipeline.DenoiseRender, float]:
+    """The inputs of ``scene``'s frames captured into ``folder`` (created; must not hold frames
+    yet), each frame written with the reference of ``source``'s frame, a complete sequence of
+    the same scene whose summary is ``summary``; the run and its wall seconds."""
+    import affinity_core
+
+    _start_folder(folder)
+    run, input_seconds = _capture_inputs(scene, folder, settings, progress)
+    if len(run.results) != summary["frames"]:
+        raise ValueError(f"{source} has {summary['frames']} frames, the scene {len(run.results)}")
+    for index, result in enumerate(run.results):
+        old = affinity_core.read_frame(os.path.join(source, affinity_core.frame_file_name(index)))
+        _write_frame(folder, index, result, old["reference"], old["info"]["reference_spp"])
+    return run, input_seconds
 
 
 def _render_blender_oidn(scene: Any, folder: str, frames: list[int], settings: CaptureSettings,
