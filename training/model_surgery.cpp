@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <optional>
 #include <string>
 
 #include "affinity/error.h"
@@ -183,35 +184,37 @@ std::vector<NamedTensor> withKernelAdded(const Weights& trained, double bandwidt
     return tensors;
 }
 
-std::vector<NamedTensor> withTemporalGain(const Weights& trained, int percent) {
-    if (percent < 1 || percent > kMaxTemporalGainPercent)
-        throw Error("temporal gain " + std::to_string(percent) + " % is outside 1.." +
-                    std::to_string(kMaxTemporalGainPercent));
+namespace {
+
+// The trained tensors with the configuration tensor `name` replaced by the int32 [1] `value`
+// (nullopt: left out).
+std::vector<NamedTensor> withConfigInteger(const Weights& trained, const std::string& name, std::optional<int> value) {
     std::vector<NamedTensor> tensors;
     for (NamedTensor& tensor : copiesOf(trained))
-        if (tensor.name != "config.temporal_gain_percent") tensors.push_back(std::move(tensor));
-    if (percent != 100) {
-        NamedTensor gain;
-        gain.name = "config.temporal_gain_percent";
-        gain.dtype = DType::Int32;
-        gain.shape = {1};
-        gain.ints = {percent};
-        tensors.push_back(std::move(gain));
+        if (tensor.name != name) tensors.push_back(std::move(tensor));
+    if (value) {
+        NamedTensor config;
+        config.name = name;
+        config.dtype = DType::Int32;
+        config.shape = {1};
+        config.ints = {*value};
+        tensors.push_back(std::move(config));
     }
     return tensors;
 }
 
+}  // namespace
+
+std::vector<NamedTensor> withTemporalGain(const Weights& trained, int percent) {
+    if (percent < 1 || percent > kMaxTemporalGainPercent)
+        throw Error("temporal gain " + std::to_string(percent) + " % is outside 1.." +
+                    std::to_string(kMaxTemporalGainPercent));
+    return withConfigInteger(trained, "config.temporal_gain_percent",
+                             percent == 100 ? std::nullopt : std::optional<int>(percent));
+}
+
 std::vector<NamedTensor> withLightRestoration(const Weights& trained, bool on) {
-    std::vector<NamedTensor> tensors;
-    for (NamedTensor& tensor : copiesOf(trained))
-        if (tensor.name != "config.light_restoration") tensors.push_back(std::move(tensor));
-    NamedTensor flag;
-    flag.name = "config.light_restoration";
-    flag.dtype = DType::Int32;
-    flag.shape = {1};
-    flag.ints = {on ? 1 : 0};
-    tensors.push_back(std::move(flag));
-    return tensors;
+    return withConfigInteger(trained, "config.light_restoration", on ? 1 : 0);
 }
 
 }  // namespace affinity::train
