@@ -33,8 +33,6 @@ constexpr const char* kUsage =
     "  --coarse-weight W   weight of SMAPE of cell means, against dark bias (0; train_loss.h)\n"
     "  --coarse-cell N     cell side of that term, pixels (8)\n"
     "  --first-frame-weight W  weight of a sequence's first frame in the image terms (1; loss_weights.h)\n"
-    "  --preroll           denoise each clip's first frame first from the samples the clip leaves,\n"
-    "                      as a still camera (the Blender extension's pre-roll); validation too\n"
     "  --displayed-weight W  weight of mean |D(O) - D(O*)|, D tone-mapped and gamma-encoded (0; loss_weights.h)\n"
     "  --val-every N (50)  --checkpoint-every N (100)  --threads N (2)  --seed N (1)\n"
     "  --device NAME       cpu (default), or cuda with a CUDA build of libtorch\n"
@@ -73,10 +71,6 @@ int main(int argc, char** argv) {
             }
             if (flag == "--fresh") {
                 options.resume = false;
-                continue;
-            }
-            if (flag == "--preroll") {
-                options.preroll = true;
                 continue;
             }
             // A removed or mistyped switch is named as unknown, not as missing its value.

@@ -19,7 +19,6 @@
 #include <fstream>
 #include <iostream>
 #include <numeric>
-#include <optional>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -128,12 +127,10 @@ std::vector<Sequence> loadSequences(const std::vector<std::string>& folders, int
     return sequences;
 }
 
-// A batch: per frame, the model's inputs and the reference; with a pre-roll, the inputs of a
-// frame denoised before the first, out of the loss.
+// A batch: per frame, the model's inputs and the reference.
 struct Batch {
     std::vector<FrameInput> frames;
     std::vector<torch::Tensor> references;
-    std::optional<FrameInput> preroll;
 };
 
 Clip cutClip(const Sequence& sequence, std::int64_t firstFrame, std::int64_t frameCount, std::int64_t y, std::int64_t x,
@@ -149,19 +146,6 @@ Clip cutClip(const Sequence& sequence, std::int64_t firstFrame, std::int64_t fra
     clip.valid = sequence.valid.narrow(0, firstFrame, frameCount).narrow(2, y, size).narrow(3, x, size);
     clip.reference = sequence.reference.narrow(0, firstFrame, frameCount).narrow(2, y, size).narrow(3, x, size);
     return clip;
-}
-
-// Makes `preroll` (one frame: the clip's first, from other samples) the frame before `clip`,
-// as the extension's pre-roll runs (blender_addon pipeline, affinity_bench PrerollRunner): a
-// frame of a still camera with no history, which the clip's first frame follows from the same
-// camera.
-void chainPreroll(Clip& preroll, Clip& clip) {
-    preroll.motion = torch::zeros_like(preroll.motion);
-    preroll.valid = torch::zeros_like(preroll.valid);
-    clip.motion = clip.motion.clone();
-    clip.valid = clip.valid.clone();
-    clip.motion[0].zero_();
-    clip.valid[0].fill_(1.0f);
 }
 
 Batch assemble(std::vector<Clip>& clips, const torch::Device& device) {
@@ -183,12 +167,6 @@ Batch assemble(std::vector<Clip>& clips, const torch::Device& device) {
     return batch;
 }
 
-Batch assemble(std::vector<Clip>& clips, std::vector<Clip>& prerolls, const torch::Device& device) {
-    Batch batch = assemble(clips, device);
-    if (!prerolls.empty()) batch.preroll = assemble(prerolls, device).frames[0];
-    return batch;
-}
-
 // A random training batch: `batch` sequences (with repetition), one random window of frames,
 // one random square crop per sequence (the same in all its frames), one spp for the batch drawn
 // uniformly in [minSpp, maxSpp] as a random subset of each sequence's rendered samples.
@@ -203,9 +181,7 @@ Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options
     const std::int64_t lowSpp = std::min<std::int64_t>(options.minSpp, spp);
     const std::int64_t highSpp = std::min<std::int64_t>(options.maxSpp, spp);
     const std::int64_t batchSpp = std::uniform_int_distribution<int>(int(lowSpp), int(highSpp))(rng);
-    // The pre-roll takes every sample the batch leaves (none at the most the data holds).
-    const std::int64_t prerollSpp = options.preroll ? spp - batchSpp : 0;
-    std::vector<Clip> clips, prerolls;
+    std::vector<Clip> clips;
     for (int b = 0; b < options.batch; ++b) {
         const Sequence& sequence = data[std::uniform_int_distribution<std::size_t>(0, data.size() - 1)(rng)];
         const std::int64_t first = std::uniform_int_distribution<std::int64_t>(0, sequence.frames() - frameCount)(rng);
@@ -214,38 +190,26 @@ Batch sampleBatch(const std::vector<Sequence>& data, const TrainOptions& options
         std::vector<std::int64_t> indices(std::size_t(sequence.spp()));
         std::iota(indices.begin(), indices.end(), 0);
         std::shuffle(indices.begin(), indices.end(), rng);
-        const std::vector<std::int64_t> spare(indices.begin() + batchSpp, indices.begin() + batchSpp + prerollSpp);
         indices.resize(std::size_t(batchSpp));
         Clip clip = cutClip(sequence, first, frameCount, y, x, size, indices);
-        const Augmentation augmentation = randomAugmentation(rng);
-        if (prerollSpp > 0) {
-            Clip preroll = cutClip(sequence, first, 1, y, x, size, spare);
-            chainPreroll(preroll, clip);
-            applyAugmentation(preroll, augmentation);
-            prerolls.push_back(std::move(preroll));
-        }
-        applyAugmentation(clip, augmentation);
+        applyAugmentation(clip, randomAugmentation(rng));
         clips.push_back(std::move(clip));
     }
-    return assemble(clips, prerolls, device);
+    return assemble(clips, device);
 }
 
-// A whole validation sequence (every frame, full size) at its first `spp` samples; with
-// `preroll`, its first frame's other samples are the pre-roll.
-Batch wholeSequence(const Sequence& sequence, int spp, bool preroll, const torch::Device& device) {
-    const std::int64_t used = std::min<std::int64_t>(spp, sequence.spp());
-    auto wholeClip = [&](std::int64_t frames, std::int64_t firstSample, std::int64_t sampleCount) {
-        const torch::Tensor index = torch::arange(firstSample, firstSample + sampleCount, torch::kLong);
-        return Clip{sequence.samples.narrow(0, 0, frames).index_select(1, index).to(torch::kFloat),
-                    sequence.motion.narrow(0, 0, frames), sequence.valid.narrow(0, 0, frames),
-                    sequence.reference.narrow(0, 0, frames)};
-    };
-    std::vector<Clip> clips{wholeClip(sequence.frames(), 0, used)}, prerolls;
-    if (preroll && sequence.spp() > used) {
-        prerolls.push_back(wholeClip(1, used, sequence.spp() - used));
-        chainPreroll(prerolls[0], clips[0]);
+// A whole validation sequence (every frame, full size) at its first `spp` samples.
+Batch wholeSequence(const Sequence& sequence, int spp, const torch::Device& device) {
+    std::vector<std::int64_t> indices(std::size_t(std::min<std::int64_t>(spp, sequence.spp())));
+    std::iota(indices.begin(), indices.end(), 0);
+    std::vector<Clip> clips{cutClip(sequence, 0, sequence.frames(), 0, 0, sequence.height(), indices)};
+    // cutClip crops a square: take the full width explicitly for non-square frames.
+    if (sequence.width() != sequence.height()) {
+        const torch::Tensor index = torch::tensor(indices, torch::kLong);
+        clips[0] = {sequence.samples.index_select(1, index).to(torch::kFloat), sequence.motion, sequence.valid,
+                    sequence.reference};
     }
-    return assemble(clips, prerolls, device);
+    return assemble(clips, device);
 }
 
 struct ForwardResult {
@@ -258,7 +222,6 @@ ForwardResult forwardBatch(AffinityModel& model, const Batch& batch, const LossW
     std::vector<torch::Tensor> outputs;
     std::vector<std::vector<torch::Tensor>> bandwidths;
     torch::Tensor noisy = torch::zeros({}, batch.references[0].options());
-    if (batch.preroll) model->forwardFrame(*batch.preroll, state);  // its output only feeds the history
     for (std::size_t t = 0; t < batch.frames.size(); ++t) {
         FrameResult result = model->forwardFrame(batch.frames[t], state);
         outputs.push_back(result.output);
@@ -349,7 +312,7 @@ TrainSummary runTraining(const TrainOptions& options) {
     std::vector<std::string> valNames;
     if (!options.valDir.empty()) {
         for (const Sequence& sequence : loadSequences(sequenceFolders(options.valDir))) {
-            val.push_back(wholeSequence(sequence, options.valSpp, options.preroll, device));
+            val.push_back(wholeSequence(sequence, options.valSpp, device));
             valNames.push_back(sequence.name);
         }
     }

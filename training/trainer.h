@@ -24,10 +24,6 @@ struct TrainOptions {
     int frames = 6;              // frames per training sequence (back-propagation through all of them)
     int minSpp = 2, maxSpp = 8;  // samples per pixel drawn uniformly per step from the rendered ones
     int valSpp = 4;              // samples per pixel for validation (the first valSpp samples)
-    // The Blender extension's pre-roll in training: each clip's first frame is denoised first,
-    // from the frame's samples that the clip does not use, as a frame of a still camera, so the
-    // clip starts with a history as the extension's sequences do (validation likewise).
-    bool preroll = false;
     double learningRate = 1e-3;
     int lrHalfLife = 0;          // learning rate halves every lrHalfLife steps (0: constant)
     LossWeights loss;            // the loss terms' weights (loss_weights.h); the defaults are the paper's
