@@ -38,8 +38,7 @@ class SequenceDenoiser(Protocol):
 #: The model the extension denoises with when the panel names none: the core's small model with a
 #: fourth, wider kernel, fine-tuned on Cycles frames captured through this extension
 #: (docs/CYCLES_DATA.md, ``cycles_d8``), its temporal gain set to 200 %. The model built into
-#: the core was trained on our own
-#: renderer's frames, whose features and light differ from Cycles'.
+#: the core was trained on our own renderer's frames, whose features and light differ from Cycles'.
 CYCLES_MODEL = os.path.join(os.path.dirname(os.path.abspath(__file__)), "models", "cycles.affw")
 
 #: Tests and development builds may replace the factory (``set_denoiser_factory``).
